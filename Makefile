@@ -1,0 +1,30 @@
+# Every target creates .venv on first use, so a fresh clone needs nothing but Python 3.11.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: demo test bench clean proto
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --upgrade pip >/dev/null
+	$(PY) -m pip install -e '.[test,devices]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/ig demo
+
+test: $(STAMP)
+	$(PY) -m pytest
+
+bench: $(STAMP)
+	$(PY) -m pip install -e '.[bench]'
+	$(PY) bench/bench_render.py
+
+# Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.
+proto: $(STAMP)
+	$(PY) -m grpc_tools.protoc -Iproto --python_out=proto --grpc_python_out=proto proto/ig/v1/*.proto
+
+clean:
+	rm -rf $(VENV) out

@@ -1,0 +1,47 @@
+"""Backface elimination in eye space (float64, before anything is narrowed)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .types import Polygons
+
+
+def eliminate_backfaces(polys: Polygons) -> Polygons:
+    """Keep faces whose front side faces the eye.
+
+    A face is front-facing when the eye (the origin) lies strictly on the side its outward
+    normal points to: ``n . p0 < 0`` for any point p0 of the face. Edge-on faces (``n . p0``
+    zero to rounding, relative to the distance) cover no area and are dropped too; this is
+    also the guard that keeps the plane constant d = n . p0 away from zero for the depth
+    interpolation in project.py.
+    """
+    n = polys.plane[:, :3]
+    d = polys.plane[:, 3]
+    first = polys.verts[polys.start[:-1]]
+    dist = np.sqrt(np.einsum("ij,ij->i", first, first))
+    keep = d < -1e-12 * np.maximum(dist, 1.0)
+    return select(polys, keep)
+
+
+def select(polys: Polygons, keep: np.ndarray) -> Polygons:
+    """The polygons where keep is true, in their original order."""
+    idx = np.nonzero(keep)[0]
+    counts = np.diff(polys.start)[idx]
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    vidx = _ranges(polys.start[idx], counts)
+    return type(polys)(
+        verts=polys.verts[vidx],
+        start=start,
+        colour=polys.colour[idx],
+        opacity=polys.opacity[idx],
+        feature_id=polys.feature_id[idx],
+        plane=polys.plane[idx],
+    )
+
+
+def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenation of arange(s, s + c) for each (s, c), without a Python loop."""
+    total = int(counts.sum())
+    base = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+    return base + np.arange(total)

@@ -1,0 +1,212 @@
+"""Scene database: load and validate a scene JSON file (docs/scene-format.md)."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .geometry import hpr_matrix
+from .types import Database, Model
+
+FORMAT = "ig-scene/1"
+_COLOUR = re.compile(r"^#[0-9a-fA-F]{6}$")
+
+
+class SceneError(ValueError):
+    """A scene file that cannot be used; the message names the file, the JSON path and value."""
+
+
+def bundled_scene_path() -> Path:
+    """The airfield scene shipped with the package."""
+    return Path(__file__).resolve().parent.parent / "data" / "airfield.json"
+
+
+def load_scene(path: str | Path) -> Database:
+    """Read, validate and index a scene file.
+
+    Raises:
+        SceneError: unreadable file, invalid JSON, or any value that breaks the format.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise SceneError(f"{path}: line {exc.lineno} column {exc.colno}: invalid JSON: {exc.msg}") from exc
+    return parse_scene(doc, source=str(path))
+
+
+def parse_scene(doc: Any, *, source: str = "<scene>") -> Database:
+    """Validate an already-decoded scene document; see load_scene."""
+    return _Parser(source).database(doc)
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """sRGB-encoded [0, 1] -> linear (IEC 61966-2-1)."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+class _Parser:
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, where: str, message: str) -> SceneError:
+        return SceneError(f"{self.source}: {where}: {message}")
+
+    def obj(self, value: Any, where: str, required: set[str], optional: set[str]) -> dict:
+        if not isinstance(value, dict):
+            raise self.fail(where, f"expected an object, got {_show(value)}")
+        for key in required:
+            if key not in value:
+                raise self.fail(where, f"missing key {key!r}")
+        for key in value:
+            if key not in required | optional:
+                raise self.fail(f"{where}.{key}" if where else key, "unknown key")
+        return value
+
+    def number(self, value: Any, where: str, lo: float = -math.inf, hi: float = math.inf) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(where, f"expected a number, got {_show(value)}")
+        if not math.isfinite(value):
+            raise self.fail(where, f"{value} is not finite")
+        if not lo <= value <= hi:
+            raise self.fail(where, f"{value} is outside [{lo}, {hi}]")
+        return float(value)
+
+    def vec3(self, value: Any, where: str) -> np.ndarray:
+        if not isinstance(value, list) or len(value) != 3:
+            raise self.fail(where, f"expected [x, y, z], got {_show(value)}")
+        return np.array([self.number(v, f"{where}[{i}]") for i, v in enumerate(value)])
+
+    def colour(self, value: Any, where: str) -> np.ndarray:
+        if not isinstance(value, str) or not _COLOUR.match(value):
+            raise self.fail(where, f"expected a colour '#rrggbb', got {_show(value)}")
+        srgb = np.array([int(value[i:i + 2], 16) for i in (1, 3, 5)]) / 255.0
+        return srgb_to_linear(srgb).astype(np.float32)
+
+    def database(self, doc: Any) -> Database:
+        doc = self.obj(doc, "", {"format", "sky", "earth", "models", "instances"}, {"name", "lighting"})
+        if doc["format"] != FORMAT:
+            raise self.fail("format", f"{_show(doc['format'])} is not {FORMAT!r}")
+        sky = self.obj(doc["sky"], "sky", {"colour"}, set())
+        earth = self.obj(doc["earth"], "earth", {"colour"}, {"height_m"})
+        lighting = self.obj(doc.get("lighting", {}), "lighting", set(),
+                            {"sun_heading_deg", "sun_elevation_deg", "ambient"})
+        sun_h = math.radians(self.number(lighting.get("sun_heading_deg", 135.0), "lighting.sun_heading_deg"))
+        sun_e = math.radians(self.number(lighting.get("sun_elevation_deg", 45.0),
+                                         "lighting.sun_elevation_deg", -90.0, 90.0))
+        sun = np.array([math.sin(sun_h) * math.cos(sun_e), math.cos(sun_h) * math.cos(sun_e), math.sin(sun_e)])
+        ambient = self.number(lighting.get("ambient", 0.4), "lighting.ambient", 0.0, 1.0)
+
+        models_doc = doc["models"]
+        if not isinstance(models_doc, dict):
+            raise self.fail("models", f"expected an object of models, got {_show(models_doc)}")
+        models = [self.model(name, m) for name, m in models_doc.items()]
+        index = {m.name: i for i, m in enumerate(models)}
+
+        inst_doc = doc["instances"]
+        if not isinstance(inst_doc, list):
+            raise self.fail("instances", f"expected a list, got {_show(inst_doc)}")
+        model_ix, positions, rotations, names = [], [], [], []
+        for j, inst in enumerate(inst_doc):
+            where = f"instances[{j}]"
+            inst = self.obj(inst, where, {"model", "position"}, {"hpr", "name"})
+            if not isinstance(inst["model"], str) or inst["model"] not in index:
+                raise self.fail(f"{where}.model", f"{_show(inst['model'])} is not a model of this scene")
+            hpr = self.vec3(inst.get("hpr", [0.0, 0.0, 0.0]), f"{where}.hpr")
+            name = inst.get("name", f"{inst['model']}#{j}")
+            if not isinstance(name, str):
+                raise self.fail(f"{where}.name", f"expected a string, got {_show(name)}")
+            model_ix.append(index[inst["model"]])
+            positions.append(self.vec3(inst["position"], f"{where}.position"))
+            rotations.append(hpr_matrix(*hpr))
+            names.append(name)
+        face_counts = np.array([models[m].face_count for m in model_ix], dtype=np.int64)
+        face_base = np.concatenate([[0], np.cumsum(face_counts)[:-1]]).astype(np.int64) if model_ix else np.zeros(0, np.int64)
+        return Database(
+            models=tuple(models),
+            instance_model=np.array(model_ix, dtype=np.int64),
+            instance_position=np.array(positions, dtype=np.float64).reshape(-1, 3),
+            instance_rotation=np.array(rotations, dtype=np.float64).reshape(-1, 3, 3),
+            instance_names=tuple(names),
+            instance_face_base=face_base,
+            sky_colour=self.colour(sky["colour"], "sky.colour"),
+            earth_colour=self.colour(earth["colour"], "earth.colour"),
+            earth_height=self.number(earth.get("height_m", 0.0), "earth.height_m"),
+            sun=sun,
+            ambient=ambient,
+            source=self.source,
+        )
+
+    def model(self, name: str, doc: Any) -> Model:
+        where = f"models.{name}"
+        doc = self.obj(doc, where, {"vertices", "faces"}, set())
+        raw = doc["vertices"]
+        if not isinstance(raw, list) or len(raw) < 3:
+            raise self.fail(f"{where}.vertices", f"expected a list of at least 3 [x, y, z], got {_show(raw)}")
+        vertices = np.array([self.vec3(v, f"{where}.vertices[{i}]") for i, v in enumerate(raw)])
+        faces = doc["faces"]
+        if not isinstance(faces, list) or not faces:
+            raise self.fail(f"{where}.faces", f"expected a non-empty list, got {_show(faces)}")
+        start, flat, colours, opacity, normals = [0], [], [], [], []
+        for k, face in enumerate(faces):
+            fwhere = f"{where}.faces[{k}]"
+            face = self.obj(face, fwhere, {"indices", "colour"}, {"opacity"})
+            idx = face["indices"]
+            if not isinstance(idx, list) or len(idx) < 3:
+                raise self.fail(f"{fwhere}.indices", f"expected at least 3 vertex indices, got {_show(idx)}")
+            for i, v in enumerate(idx):
+                if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < len(vertices):
+                    raise self.fail(f"{fwhere}.indices[{i}]",
+                                    f"index {_show(v)} out of range (model has {len(vertices)} vertices)")
+            if len(set(idx)) != len(idx):
+                raise self.fail(f"{fwhere}.indices", f"{idx} repeats a vertex")
+            normals.append(self.face_normal(vertices[idx], f"{fwhere}.indices"))
+            flat.extend(idx)
+            start.append(len(flat))
+            colours.append(self.colour(face["colour"], f"{fwhere}.colour"))
+            opacity.append(self.number(face.get("opacity", 1.0), f"{fwhere}.opacity", 0.0, 1.0))
+            if opacity[-1] == 0.0:
+                raise self.fail(f"{fwhere}.opacity", "0 makes the face invisible; remove it instead")
+        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+        centre = (lo + hi) / 2.0
+        radius = float(np.sqrt(((vertices - centre) ** 2).sum(axis=1)).max())
+        return Model(name, vertices, np.array(start, np.int64), np.array(flat, np.int64),
+                     np.array(colours, np.float32), np.array(opacity, np.float32),
+                     np.array(normals), centre, radius)
+
+    def face_normal(self, pts: np.ndarray, where: str) -> np.ndarray:
+        """Newell normal of a face; checks it is planar and strictly convex."""
+        nxt = np.roll(pts, -1, axis=0)
+        newell = np.array([
+            np.sum((pts[:, 1] - nxt[:, 1]) * (pts[:, 2] + nxt[:, 2])),
+            np.sum((pts[:, 2] - nxt[:, 2]) * (pts[:, 0] + nxt[:, 0])),
+            np.sum((pts[:, 0] - nxt[:, 0]) * (pts[:, 1] + nxt[:, 1])),
+        ])
+        length = float(np.linalg.norm(newell))
+        size = float(np.ptp(pts, axis=0).max())
+        # Guard: a face with (near) zero area has no normal; reject instead of dividing by ~0.
+        if length <= 1e-12 * max(size, 1.0) ** 2:
+            raise self.fail(where, "the face has no area (its vertices are collinear or coincide)")
+        n = newell / length
+        off_plane = np.abs((pts - pts.mean(axis=0)) @ n).max()
+        if off_plane > 1e-3 + 1e-3 * size:
+            raise self.fail(where, f"the face is not planar (a vertex lies {off_plane:.4g} m off its plane)")
+        edges = nxt - pts
+        turns = np.cross(edges, np.roll(edges, -1, axis=0)) @ n
+        if np.any(turns < -1e-9 * max(size, 1.0) ** 2):
+            raise self.fail(where, "the face is not convex, or its winding is not consistent")
+        return n
+
+
+def _show(value: Any) -> str:
+    text = json.dumps(value) if not isinstance(value, float) else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."

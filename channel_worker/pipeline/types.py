@@ -1,0 +1,278 @@
+"""Plain data passed between the pipeline stages.
+
+Frames (see docs/conventions.md):
+- world: x east, y north, z up, metres, float64;
+- eye: x right, y up, z forward (depth), metres, relative to the eyepoint;
+- screen: pixels, x right, y down, (0, 0) the top-left corner of the top-left pixel,
+  pixel centres at half-integers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: Feature identity stored for samples that no polygon covers.
+SKY_ID = -1
+EARTH_ID = -2
+
+#: Sub-pixel precision of the rasterizer: screen coordinates are snapped to 1/SUBPIXEL pixel
+#: and edge functions are evaluated exactly in int64 (watertight, see raster.py).
+SUBPIXEL_BITS = 8
+SUBPIXEL = 1 << SUBPIXEL_BITS
+
+
+@dataclass(frozen=True)
+class Eyepoint:
+    """Where the aircraft's eye is and how it is oriented.
+
+    Attributes:
+        position: world position, metres, float64 (3,).
+        heading_deg: clockwise from north.
+        pitch_deg: nose-up positive.
+        roll_deg: right-wing-down positive.
+    """
+
+    position: np.ndarray
+    heading_deg: float
+    pitch_deg: float
+    roll_deg: float
+
+    @staticmethod
+    def of(x: float, y: float, z: float, h: float, p: float, r: float) -> "Eyepoint":
+        return Eyepoint(np.array([x, y, z], dtype=np.float64), float(h), float(p), float(r))
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """One window of the rig: its offset from the aircraft nose, frustum and raster size.
+
+    Angles in degrees. The frustum angles are measured in the channel's own frame and may be
+    asymmetric (left < right, bottom < top, each strictly inside (-90, 90)).
+    """
+
+    name: str
+    width: int
+    height: int
+    left_deg: float
+    right_deg: float
+    bottom_deg: float
+    top_deg: float
+    yaw_deg: float = 0.0
+    pitch_deg: float = 0.0
+    roll_deg: float = 0.0
+
+    @staticmethod
+    def symmetric(name: str, width: int, height: int, fov_h_deg: float,
+                  fov_v_deg: float | None = None, *, yaw_deg: float = 0.0,
+                  pitch_deg: float = 0.0, roll_deg: float = 0.0) -> "ChannelSpec":
+        """A centred frustum; without fov_v the pixels are square."""
+        half_h = fov_h_deg / 2.0
+        if fov_v_deg is None:
+            tan_v = np.tan(np.radians(half_h)) * height / width
+            half_v = float(np.degrees(np.arctan(tan_v)))
+        else:
+            half_v = fov_v_deg / 2.0
+        return ChannelSpec(name, int(width), int(height), -half_h, half_h, -half_v, half_v,
+                           yaw_deg, pitch_deg, roll_deg)
+
+
+@dataclass(frozen=True)
+class View:
+    """Everything the stages need to know about one channel's view for one frame.
+
+    Attributes:
+        eye: eyepoint in world metres, float64 (3,).
+        world_to_eye: (3, 3) float64; rows are the eye x (right), y (up), z (forward) axes
+            expressed in world coordinates, so ``eye_vec = world_to_eye @ world_vec``.
+        tan_left, tan_right, tan_bottom, tan_top: frustum edges as tangents (x/z, y/z).
+        width, height: raster size in pixels.
+        near: near clip distance along eye z, metres.
+        far: far clip distance along eye z, metres.
+    """
+
+    eye: np.ndarray
+    world_to_eye: np.ndarray
+    tan_left: float
+    tan_right: float
+    tan_bottom: float
+    tan_top: float
+    width: int
+    height: int
+    near: float = 0.25
+    far: float = 100_000.0
+
+
+@dataclass(frozen=True)
+class DrawList:
+    """Instances that survived culling: indices into the database and model-to-world rotations."""
+
+    instance_index: np.ndarray  # (N,) int64
+    rotation: np.ndarray  # (N, 3, 3) float64 model -> world
+    position: np.ndarray  # (N, 3) float64 world metres
+
+
+@dataclass(frozen=True)
+class Polygons:
+    """Convex polygons in one frame (eye metres before projection, screen pixels after).
+
+    ``verts[start[i]:start[i + 1]]`` are the vertices of polygon i in order. The winding of every
+    polygon is normalised so that it is counter-clockwise as the eye sees it (front faces only
+    reach here).
+
+    Attributes:
+        verts: (Nv, 3) float64 eye coordinates, or (Nv, 2) float64 screen pixels.
+        start: (N + 1,) int64 offsets into verts.
+        colour: (N, 3) float32 linear RGB after shading.
+        opacity: (N,) float32; 1 is opaque.
+        feature_id: (N,) int32 identity of the source face (see Database.face_names).
+        plane: (N, 4) float64 eye-space plane (nx, ny, nz, d) with n . p = d, n pointing
+            towards the eye; used to interpolate depth exactly.
+    """
+
+    verts: np.ndarray
+    start: np.ndarray
+    colour: np.ndarray
+    opacity: np.ndarray
+    feature_id: np.ndarray
+    plane: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.start.shape[0] - 1)
+
+
+@dataclass(frozen=True)
+class ScreenPolygons:
+    """Projected polygons ready for rasterization.
+
+    Attributes:
+        fixed: (Nv, 2) int64 vertex positions in 1/SUBPIXEL pixel units (snapped).
+        start: (N + 1,) int64 offsets into fixed.
+        inv_z: (N, 3) float64 (A, B, C) with 1/z = A * sx + B * sy + C at screen point (sx, sy)
+            in pixels, z the eye-space depth in metres.
+        colour, opacity, feature_id: as in Polygons.
+    """
+
+    fixed: np.ndarray
+    start: np.ndarray
+    inv_z: np.ndarray
+    colour: np.ndarray
+    opacity: np.ndarray
+    feature_id: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return int(self.start.shape[0] - 1)
+
+
+@dataclass(frozen=True)
+class SampleBuffer:
+    """Per-sample results of visibility.
+
+    Attributes:
+        colour: (H, W, S, 3) float32 linear RGB.
+        inv_z: (H, W, S) float32; 1/z of the visible polygon, 0 where only sky or earth.
+        feature: (H, W, S) int32 feature id, SKY_ID or EARTH_ID.
+        offsets: (S, 2) float64 sample positions inside the pixel, pixels from its top-left.
+    """
+
+    colour: np.ndarray
+    inv_z: np.ndarray
+    feature: np.ndarray
+    offsets: np.ndarray
+
+
+@dataclass(frozen=True)
+class Image:
+    """One channel's resolved output.
+
+    Attributes:
+        rgb: (H, W, 3) float32 linear RGB.
+        range_m: (H, W) float32 distance from the eye to the nearest surface seen in the pixel,
+            metres; +inf where the pixel sees only sky.
+    """
+
+    rgb: np.ndarray
+    range_m: np.ndarray
+
+
+@dataclass
+class StageTimes:
+    """Wall-clock seconds spent in each stage of one frame, in pipeline order."""
+
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def total(self) -> float:
+        return float(sum(self.seconds.values()))
+
+
+@dataclass(frozen=True)
+class Model:
+    """One model of the database: convex polygons in model coordinates (metres).
+
+    Attributes:
+        name: key in the scene file.
+        vertices: (Nv, 3) float64.
+        face_start: (F + 1,) int64 offsets into face_index.
+        face_index: vertex indices of all faces, concatenated, counter-clockwise from the front.
+        colour: (F, 3) float32 linear RGB.
+        opacity: (F,) float32.
+        normal: (F, 3) float64 unit outward normals.
+        centre: (3,) float64 bounding-sphere centre; radius: its radius, metres.
+    """
+
+    name: str
+    vertices: np.ndarray
+    face_start: np.ndarray
+    face_index: np.ndarray
+    colour: np.ndarray
+    opacity: np.ndarray
+    normal: np.ndarray
+    centre: np.ndarray
+    radius: float
+
+    @property
+    def face_count(self) -> int:
+        return int(self.face_start.shape[0] - 1)
+
+
+@dataclass(frozen=True)
+class Database:
+    """The loaded scene.
+
+    Attributes:
+        models: all models, referenced by index.
+        instance_model: (N,) int64 model index per instance.
+        instance_position: (N, 3) float64 world metres.
+        instance_rotation: (N, 3, 3) float64 model -> world.
+        instance_names: display names.
+        instance_face_base: (N,) int64; feature id of face k of instance i is base[i] + k.
+        sky_colour, earth_colour: (3,) float32 linear RGB.
+        earth_height: world z of the earth plane, metres.
+        sun: (3,) float64 unit vector towards the sun, world frame.
+        ambient: share of a face's colour lit regardless of the sun.
+        source: where the database was loaded from (for messages).
+    """
+
+    models: tuple[Model, ...]
+    instance_model: np.ndarray
+    instance_position: np.ndarray
+    instance_rotation: np.ndarray
+    instance_names: tuple[str, ...]
+    instance_face_base: np.ndarray
+    sky_colour: np.ndarray
+    earth_colour: np.ndarray
+    earth_height: float
+    sun: np.ndarray
+    ambient: float
+    source: str = ""
+
+    @property
+    def feature_count(self) -> int:
+        if self.instance_model.shape[0] == 0:
+            return 0
+        last = int(self.instance_model[-1])
+        return int(self.instance_face_base[-1]) + self.models[last].face_count

@@ -1,0 +1,108 @@
+"""Every image the rig reads or writes goes through OpenImageIO here.
+
+`.exr` keeps the linear float data (RGB, plus a `Z` channel with the range from the eye when
+given); every other extension (PNG in practice) gets sRGB-encoded 8-bit RGB. Frame metadata
+(eyepoint, channel, frame number) travels as image attributes under the `ig:` prefix.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+
+AttrValue = str | float | int
+
+
+def linear_to_srgb8(rgb: np.ndarray) -> np.ndarray:
+    """Encode linear RGB (any shape, last axis channels) as sRGB 8-bit (IEC 61966-2-1)."""
+    c = np.clip(np.nan_to_num(rgb, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+    encoded = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
+    return np.round(encoded * 255.0).astype(np.uint8)
+
+
+def srgb8_to_linear(srgb: np.ndarray) -> np.ndarray:
+    """Inverse of linear_to_srgb8, float32."""
+    c = srgb.astype(np.float32) / 255.0
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def write_image(path: str | Path, rgb_linear: np.ndarray, *, range_m: np.ndarray | None = None,
+                attributes: dict[str, AttrValue] | None = None) -> None:
+    """Write one image.
+
+    Args:
+        path: destination; `.exr` writes linear half-float RGB (and float32 `Z` if range_m is
+            given), anything else writes sRGB 8-bit RGB.
+        rgb_linear: (H, W, 3) linear RGB.
+        range_m: (H, W) metres from the eye, +inf for sky; stored only in EXR.
+        attributes: metadata, stored as `ig:<key>` attributes.
+
+    Raises:
+        OSError: OpenImageIO could not create or write the file (its message is included).
+    """
+    path = Path(path)
+    rgb = np.ascontiguousarray(rgb_linear, dtype=np.float32)
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError(f"rgb_linear: shape {rgb.shape} is not (H, W, 3)")
+    height, width = rgb.shape[:2]
+    is_exr = path.suffix.lower() == ".exr"
+    if is_exr:
+        if range_m is not None:
+            pixels = np.concatenate([rgb, np.asarray(range_m, np.float32)[..., None]], axis=2)
+            spec = oiio.ImageSpec(width, height, 4, oiio.FLOAT)
+            spec.channelnames = ("R", "G", "B", "Z")
+            # half for colour keeps files small; Z needs float32 to hold kilometres to the cm.
+            spec.channelformats = (oiio.HALF, oiio.HALF, oiio.HALF, oiio.FLOAT)
+        else:
+            pixels = rgb
+            spec = oiio.ImageSpec(width, height, 3, oiio.HALF)
+            spec.channelnames = ("R", "G", "B")
+        spec.attribute("compression", "zip")
+        data = pixels
+    else:
+        spec = oiio.ImageSpec(width, height, 3, oiio.UINT8)
+        data = linear_to_srgb8(rgb)
+    for key, value in (attributes or {}).items():
+        if not is_exr or isinstance(value, bool):
+            # PNG keeps only text chunks: numbers are stored as their repr and read back as text.
+            value = str(value)
+        spec.attribute(f"ig:{key}", value)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    out = oiio.ImageOutput.create(str(path))
+    if out is None:
+        raise OSError(f"{path}: OpenImageIO cannot write this format: {oiio.geterror()}")
+    try:
+        if not out.open(str(path), spec):
+            raise OSError(f"{path}: {out.geterror()}")
+        if not out.write_image(data):
+            raise OSError(f"{path}: {out.geterror()}")
+    finally:
+        out.close()
+
+
+def read_image(path: str | Path) -> tuple[np.ndarray, dict[str, AttrValue]]:
+    """Read an image written by write_image.
+
+    Returns:
+        (pixels, attributes): pixels (H, W, C) float32 as stored (8-bit files are scaled to
+        [0, 1] but left sRGB-encoded); attributes holds the `ig:` metadata without the prefix,
+        plus `channelnames`.
+    """
+    path = Path(path)
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise OSError(f"{path}: {oiio.geterror()}")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+        if pixels is None:
+            raise OSError(f"{path}: {inp.geterror()}")
+        attrs: dict[str, AttrValue] = {"channelnames": ",".join(spec.channelnames)}
+        for param in spec.extra_attribs:
+            if param.name.startswith("ig:"):
+                attrs[param.name[3:]] = param.value
+    finally:
+        inp.close()
+    return np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels), attrs
