@@ -1,0 +1,72 @@
+"""`ig render`: one frame of one channel to an image file."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from .pipeline.render import render_frame
+from .pipeline.samples import pattern_names
+from .pipeline.scene import SceneError, bundled_scene_path, load_scene
+from .pipeline.types import ChannelSpec, Eyepoint, StageTimes
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `ig render`."""
+    parser.add_argument("scene", nargs="?", default=None,
+                        help="scene JSON file (docs/scene-format.md); default: the bundled airfield")
+    parser.add_argument("--eye", nargs=3, type=float, metavar=("X", "Y", "Z"), required=True,
+                        help="eyepoint, world metres (x east, y north, z up)")
+    parser.add_argument("--hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
+                        help="aircraft heading, pitch, roll in degrees (default 0 0 0)")
+    parser.add_argument("--width", type=int, default=1024, help="pixels (default 1024)")
+    parser.add_argument("--height", type=int, default=768, help="pixels (default 768)")
+    parser.add_argument("--fov-h", type=float, default=60.0, help="horizontal field of view, degrees (default 60)")
+    parser.add_argument("--fov-v", type=float, default=None,
+                        help="vertical field of view, degrees (default: square pixels)")
+    parser.add_argument("--channel-hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
+                        help="channel yaw, pitch, roll offset from the aircraft nose, degrees")
+    parser.add_argument("--samples", default="4",
+                        help=f"samples per pixel: a count (1, 2, 4, 8, 16) or a pattern ({', '.join(pattern_names())})")
+    parser.add_argument("--out", required=True,
+                        help="output image: .exr (linear float RGB + Z range in metres) or .png (sRGB 8-bit)")
+    parser.add_argument("--times", action="store_true", help="print the time of each pipeline stage")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Render and write the frame; 0 on success, 2 on bad input."""
+    from services.image_io import write_image
+
+    try:
+        database = load_scene(args.scene or bundled_scene_path())
+        channel = ChannelSpec.symmetric("render", args.width, args.height, args.fov_h, args.fov_v,
+                                        yaw_deg=args.channel_hpr[0], pitch_deg=args.channel_hpr[1],
+                                        roll_deg=args.channel_hpr[2])
+        eyepoint = Eyepoint.of(*args.eye, *args.hpr)
+        times = StageTimes()
+        t0 = time.perf_counter()
+        image = render_frame(database, channel, eyepoint, samples=args.samples, times=times)
+        elapsed = time.perf_counter() - t0
+    except (SceneError, ValueError) as exc:
+        print(f"ig render: error: {exc}", file=sys.stderr)
+        return 2
+    attributes = {
+        "eye_x": eyepoint.position[0], "eye_y": eyepoint.position[1], "eye_z": eyepoint.position[2],
+        "heading_deg": eyepoint.heading_deg, "pitch_deg": eyepoint.pitch_deg, "roll_deg": eyepoint.roll_deg,
+        "channel": channel.name,
+        "channel_yaw_deg": channel.yaw_deg, "channel_pitch_deg": channel.pitch_deg,
+        "channel_roll_deg": channel.roll_deg,
+        "frustum_deg": f"{channel.left_deg} {channel.right_deg} {channel.bottom_deg} {channel.top_deg}",
+        "samples": str(args.samples), "scene": str(database.source),
+    }
+    try:
+        write_image(args.out, image.rgb, range_m=image.range_m, attributes=attributes)
+    except OSError as exc:
+        print(f"ig render: error: {exc}", file=sys.stderr)
+        return 2
+    if args.times:
+        for stage, seconds in times.seconds.items():
+            print(f"{stage:>10} {seconds * 1000:9.2f} ms")
+    print(f"wrote {args.out} ({channel.width} x {channel.height}, {elapsed * 1000:.1f} ms)")
+    return 0

@@ -1,0 +1,46 @@
+"""Small scenes built in code for the pipeline tests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from channel_worker.pipeline.scene import parse_scene
+
+
+def box_model(w: float, d: float, h: float, colour: str = "#a0a0a0") -> dict:
+    """A box with its base centred on the model origin, faces CCW from outside."""
+    x, y = w / 2, d / 2
+    v = [[-x, -y, 0], [x, -y, 0], [x, y, 0], [-x, y, 0], [-x, -y, h], [x, -y, h], [x, y, h], [-x, y, h]]
+    faces = [[3, 2, 1, 0], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
+    return {"vertices": v, "faces": [{"indices": f, "colour": colour} for f in faces]}
+
+
+def scene_doc(models: dict, instances: list, *, sky: str = "#0000ff", earth: str = "#00ff00",
+              earth_height: float = 0.0) -> dict:
+    return {
+        "format": "ig-scene/1",
+        "sky": {"colour": sky},
+        "earth": {"colour": earth, "height_m": earth_height},
+        "lighting": {"ambient": 1.0},
+        "models": models,
+        "instances": instances,
+    }
+
+
+@pytest.fixture
+def make_scene():
+    """Build a Database from models and instances (flat lighting, pure colours)."""
+    def build(models: dict, instances: list, **kw):
+        return parse_scene(scene_doc(models, instances, **kw), source="<test>")
+    return build
+
+
+@pytest.fixture
+def box_model_factory():
+    return box_model
+
+
+def linear(hex_colour: str) -> np.ndarray:
+    srgb = np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)]) / 255.0
+    return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
