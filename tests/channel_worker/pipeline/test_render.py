@@ -1,0 +1,89 @@
+"""The whole pipeline on hard cases: no NaN, correct ranges, far from the origin."""
+
+import math
+
+import numpy as np
+import pytest
+
+from channel_worker.pipeline.render import render_frame
+from channel_worker.pipeline.types import EARTH_ID, ChannelSpec, Eyepoint, StageTimes
+
+CH = ChannelSpec.symmetric("c", 64, 48, 60.0)
+
+
+def scene(make_scene, box_model_factory, origin=(0.0, 0.0)):
+    ox, oy = origin
+    return make_scene({"b": box_model_factory(10, 10, 10, "#ff0000")},
+                      [{"model": "b", "position": [ox, oy + 100.0, 0.0]}])
+
+
+def test_box_in_front_has_the_right_range(make_scene, box_model_factory):
+    db = scene(make_scene, box_model_factory)
+    img = render_frame(db, CH, Eyepoint.of(0, 0, 5, 0, 0, 0), samples=1)
+    # the pixel at the centre of the raster looks straight at the box's south face (y = 95)
+    assert img.range_m[24, 32] == pytest.approx(math.hypot(95.0, 0.5 * math.tan(math.radians(30)) * 95 / 32),
+                                                rel=0.01)
+    assert np.isinf(img.range_m[0, 0])  # sky
+    # earth below: range = height / sin(depression) for the bottom-centre pixel
+    fy = math.tan(math.radians(30)) * 48 / 64
+    ty = fy * (24 - 47.5) / 24
+    assert img.range_m[47, 32] == pytest.approx(5.0 * math.sqrt(1 + ty * ty + (0.5 / 32 * math.tan(math.radians(30))) ** 2) / -ty, rel=1e-3)
+
+
+@pytest.mark.parametrize("hpr", [(0, 90, 0), (0, -90, 0), (359.5, 0, 180), (123, 89.999, 77), (0, -90, 180)])
+def test_extreme_attitudes_have_no_nan(make_scene, box_model_factory, hpr):
+    db = scene(make_scene, box_model_factory)
+    img = render_frame(db, CH, Eyepoint.of(0, 90, 5, *hpr), samples=4)
+    assert np.isfinite(img.rgb).all()
+    assert not np.isnan(img.range_m).any()
+
+
+def test_looking_straight_down_sees_only_earth_at_the_height(make_scene, box_model_factory):
+    db = scene(make_scene, box_model_factory)
+    img = render_frame(db, CH, Eyepoint.of(0, -500, 50, 0, -90, 0), samples=1)
+    np.testing.assert_allclose(img.rgb, np.broadcast_to(db.earth_colour, img.rgb.shape), rtol=1e-6)
+    assert img.range_m.min() >= 50.0 - 1e-3
+
+
+def test_1000_km_from_origin_matches_the_origin(make_scene, box_model_factory):
+    near = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 10, 2, 3), samples=4)
+    far_db = scene(make_scene, box_model_factory, origin=(1.0e6, -1.0e6))
+    far = render_frame(far_db, CH, Eyepoint.of(1.0e6, -1.0e6, 5, 10, 2, 3), samples=4)
+    np.testing.assert_allclose(far.rgb, near.rgb, atol=1e-6)
+    np.testing.assert_allclose(far.range_m, near.range_m, rtol=1e-6)
+
+
+def test_eye_below_earth_is_clamped_not_nan(make_scene, box_model_factory):
+    img = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, -3, 0, 0, 0), samples=1)
+    assert np.isfinite(img.rgb).all()
+    assert not np.isnan(img.range_m).any()
+
+
+def test_translucent_face_blends_over_what_is_behind(make_scene, box_model_factory):
+    glass = {"vertices": [[-20, 0, 0], [20, 0, 0], [20, 0, 30], [-20, 0, 30]],
+             "faces": [{"indices": [0, 1, 2, 3], "colour": "#ffffff", "opacity": 0.5}]}
+    db = make_scene({"b": box_model_factory(10, 10, 10, "#ff0000"), "g": glass},
+                    [{"model": "b", "position": [0, 100, 0]}, {"model": "g", "position": [0, 50, 0]}])
+    img = render_frame(db, CH, Eyepoint.of(0, 0, 5, 0, 0, 0), samples=1)
+    px = img.rgb[24, 32]
+    np.testing.assert_allclose(px, 0.5 * np.array([1, 1, 1]) + 0.5 * np.array([1, 0, 0]), atol=1e-6)
+    assert img.range_m[24, 32] > 90  # range stays the opaque feature's
+
+
+def test_stage_times_are_reported_in_order(make_scene, box_model_factory):
+    times = StageTimes()
+    render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), times=times)
+    assert list(times.seconds) == ["view", "cull", "transform", "backface", "clip", "project",
+                                   "horizon", "raster", "resolve"]
+
+
+def test_unknown_sample_pattern_is_named(make_scene, box_model_factory):
+    with pytest.raises(ValueError, match="samples: unknown pattern 'foo'"):
+        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), samples="foo")
+    with pytest.raises(ValueError, match="samples: 3 has no pattern"):
+        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), samples=3)
+
+
+def test_nan_eyepoint_is_refused_naming_the_field(make_scene, box_model_factory):
+    with pytest.raises(ValueError, match=r"eyepoint.position\[1\]: nan is not finite"):
+        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, float("nan"), 5, 0, 0, 0))
