@@ -11,22 +11,22 @@ from .types import EARTH_ID, SKY_ID
 
 
 @njit(cache=True, parallel=True)
-def box_resolve_kernel(colour, inv_z, feature, offsets, sx_scale, sx_off, sy_scale, sy_off,
-                       dz_row, height_above, out_rgb, out_range):
+def box_resolve_kernel(colour, inv_z, feature, tx, ty, dz_row, height_above, out_rgb, out_range):
     """Average the samples of each pixel; range is that of the nearest sample in the pixel.
 
-    Range along a sample ray (tx, ty, 1): a polygon at 1/z = iz is at |(tx, ty, 1)| / iz
-    (iz > 0: polygons are clipped to z >= near); the earth is where the ray meets the plane
-    height_above below the eye, |(tx, ty, 1)| * height_above / -dz (dz < 0 for earth samples,
-    checked by the horizon stage); the sky is at +inf.
+    tx[x, s], ty[y, s]: the eye-space ray (tx, ty, 1) of sample s of pixel column x / row y.
+    Range along a ray: a polygon at 1/z = iz is at |(tx, ty, 1)| / iz (iz > 0: polygons are
+    clipped to z >= near); the earth is where the ray meets the plane height_above below the
+    eye, |(tx, ty, 1)| * height_above / -dz (dz < 0 for every earth sample, as the horizon
+    stage decided); the sky is at +inf.
     """
     h, w, s_count = inv_z.shape
-    inv_s = 1.0 / s_count
+    inv_s = np.float32(1.0 / s_count)
     for y in prange(h):
         for x in range(w):
-            r = 0.0
-            g = 0.0
-            b = 0.0
+            r = np.float32(0.0)
+            g = np.float32(0.0)
+            b = np.float32(0.0)
             nearest = np.inf
             for s in range(s_count):
                 r += colour[y, x, s, 0]
@@ -35,12 +35,11 @@ def box_resolve_kernel(colour, inv_z, feature, offsets, sx_scale, sx_off, sy_sca
                 f = feature[y, x, s]
                 if f == SKY_ID:
                     continue
-                tx = (x + offsets[s, 0] - sx_off) / sx_scale
-                ty = (y + offsets[s, 1] - sy_off) / sy_scale
-                norm = math.sqrt(tx * tx + ty * ty + 1.0)
+                a = tx[x, s]
+                c = ty[y, s]
+                norm = math.sqrt(a * a + c * c + 1.0)
                 if f == EARTH_ID:
-                    dz = dz_row[0] * tx + dz_row[1] * ty + dz_row[2]
-                    dist = norm * height_above / -dz
+                    dist = norm * height_above / -(dz_row[0] * a + dz_row[1] * c + dz_row[2])
                 else:
                     dist = norm / inv_z[y, x, s]
                 nearest = min(nearest, dist)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .geometry import _ranges
 from .types import Polygons
 
 
@@ -39,9 +40,3 @@ def select(polys: Polygons, keep: np.ndarray) -> Polygons:
         plane=polys.plane[idx],
     )
 
-
-def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
-    """Concatenation of arange(s, s + c) for each (s, c), without a Python loop."""
-    total = int(counts.sum())
-    base = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
-    return base + np.arange(total)

@@ -88,41 +88,50 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
 
     Positions stay float64 throughout: the instance position is made eye-relative first (a
     difference of two large, nearly equal numbers that float64 holds exactly enough at 1000 km),
-    and only then are the small model offsets rotated and added.
+    and only then are the small model offsets rotated and added. All instances are transformed
+    in one vectorised pass over a flat table of their face vertices.
     """
-    verts, starts, colours, opacities, ids, normals = [], [0], [], [], [], []
-    offset = 0
-    for k in range(draws.instance_index.shape[0]):
-        inst = int(draws.instance_index[k])
-        model = database.models[int(database.instance_model[inst])]
-        rel = draws.position[k] - view.eye
-        to_eye_rot = view.world_to_eye @ draws.rotation[k]
-        model_eye = (model.vertices @ to_eye_rot.T) + view.world_to_eye @ rel
-        verts.append(model_eye[model.face_index])
-        starts.append(model.face_start[1:] + offset)
-        offset += model.face_index.shape[0]
-        world_n = model.normal @ draws.rotation[k].T
-        lambert = np.clip(world_n @ database.sun, 0.0, 1.0)
-        light = database.ambient + (1.0 - database.ambient) * lambert
-        colours.append(model.colour * light[:, None].astype(np.float32))
-        opacities.append(model.opacity)
-        ids.append(database.instance_face_base[inst] + np.arange(model.face_count))
-        normals.append(model.normal @ to_eye_rot.T)
-    if not ids:
+    n = draws.instance_index.shape[0]
+    if n == 0:
         return empty_polygons(3)
-    eye_verts = np.concatenate(verts)
-    start = np.concatenate([np.asarray(s, dtype=np.int64).ravel() for s in starts])
-    normal = np.concatenate(normals)
-    first = eye_verts[start[:-1]]
-    d = np.einsum("ij,ij->i", normal, first)
+    table = database.faces
+    model = database.instance_model[draws.instance_index]
+    corners = table.corner_count[model]  # face-vertex slots per drawn instance
+    faces = table.face_count[model]
+    corner_inst = np.repeat(np.arange(n), corners)
+    face_inst = np.repeat(np.arange(n), faces)
+    corner_rows = _ranges(table.corner_base[model], corners)
+    face_rows = _ranges(table.face_base[model], faces)
+
+    to_eye_rot = view.world_to_eye @ draws.rotation  # (n, 3, 3) model -> eye
+    rel = (draws.position - view.eye) @ view.world_to_eye.T  # instance origins, eye frame
+    local = table.corner_xyz[corner_rows]
+    eye_verts = np.einsum("nij,nj->ni", to_eye_rot[corner_inst], local) + rel[corner_inst]
+
+    model_n = table.normal[face_rows]
+    normal = np.einsum("nij,nj->ni", to_eye_rot[face_inst], model_n)
+    world_n = np.einsum("nij,nj->ni", draws.rotation[face_inst], model_n)
+    light = database.ambient + (1.0 - database.ambient) * np.clip(world_n @ database.sun, 0.0, 1.0)
+
+    sizes = table.face_size[face_rows]
+    start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    d = np.einsum("ij,ij->i", normal, eye_verts[start[:-1]])
+    ids = database.instance_face_base[draws.instance_index][face_inst] + table.local_face[face_rows]
     return Polygons(
         verts=eye_verts,
         start=start,
-        colour=np.concatenate(colours).astype(np.float32),
-        opacity=np.concatenate(opacities).astype(np.float32),
-        feature_id=np.concatenate(ids).astype(np.int32),
+        colour=(table.colour[face_rows] * light[:, None]).astype(np.float32),
+        opacity=table.opacity[face_rows],
+        feature_id=ids.astype(np.int32),
         plane=np.column_stack([normal, d]),
     )
+
+
+def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenation of arange(s, s + c) for each (s, c), without a Python loop."""
+    total = int(counts.sum())
+    base = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+    return base + np.arange(total)
 
 
 def empty_polygons(dim: int) -> Polygons:

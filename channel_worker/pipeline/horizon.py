@@ -24,16 +24,25 @@ def synthesize_horizon(database: Database, view: View, offsets: np.ndarray) -> S
     colour = np.empty((h, w, s, 3), np.float32)
     inv_z = np.empty((h, w, s), np.float32)
     feature = np.empty((h, w, s), np.int32)
-    sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
-    horizon_kernel(offsets, sx_scale, sx_off, sy_scale, sy_off, earth_dz_row(view),
-                   database.sky_colour,
-                   database.earth_colour, colour, inv_z, feature)
+    kx, ky, k0 = earth_dz_screen(view)
+    horizon_kernel(offsets, kx, ky, k0, database.sky_colour, database.earth_colour, colour,
+                   inv_z, feature)
     return SampleBuffer(colour=colour, inv_z=inv_z, feature=feature, offsets=offsets)
 
 
 def earth_dz_row(view: View) -> np.ndarray:
     """(r0, r1, r2): world z of the eye ray (tx, ty, 1) is r0 tx + r1 ty + r2."""
     return np.ascontiguousarray(view.world_to_eye[:, 2])
+
+
+def earth_dz_screen(view: View) -> tuple[float, float, float]:
+    """(kx, ky, k0): world z of the eye ray through screen point (sx, sy) is kx sx + ky sy + k0.
+
+    The ray is (tx, ty, 1) in eye coordinates, with tx, ty affine in sx, sy (project.py).
+    """
+    r0, r1, r2 = earth_dz_row(view)
+    sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
+    return r0 / sx_scale, r1 / sy_scale, r2 - r0 * sx_off / sx_scale - r1 * sy_off / sy_scale
 
 
 def height_above_earth(database: Database, view: View) -> float:

@@ -20,7 +20,8 @@ def resolve(buffer: SampleBuffer, view: View, database: Database) -> Image:
     rgb = np.empty((h, w, 3), np.float32)
     range_m = np.empty((h, w), np.float32)
     sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
-    box_resolve_kernel(buffer.colour, buffer.inv_z, buffer.feature, buffer.offsets, sx_scale,
-                       sx_off, sy_scale, sy_off, earth_dz_row(view),
+    tx = (np.arange(w)[:, None] + buffer.offsets[None, :, 0] - sx_off) / sx_scale
+    ty = (np.arange(h)[:, None] + buffer.offsets[None, :, 1] - sy_off) / sy_scale
+    box_resolve_kernel(buffer.colour, buffer.inv_z, buffer.feature, tx, ty, earth_dz_row(view),
                        height_above_earth(database, view), rgb, range_m)
     return Image(rgb=rgb, range_m=range_m)

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from .geometry import hpr_matrix
-from .types import Database, Model
+from .types import Database, FaceTable, Model
 
 FORMAT = "ig-scene/1"
 _COLOUR = re.compile(r"^#[0-9a-fA-F]{6}$")
@@ -143,6 +143,7 @@ class _Parser:
             earth_height=self.number(earth.get("height_m", 0.0), "earth.height_m"),
             sun=sun,
             ambient=ambient,
+            faces=FaceTable.of(tuple(models)),
             source=self.source,
         )
 

@@ -240,6 +240,44 @@ class Model:
 
 
 @dataclass(frozen=True)
+class FaceTable:
+    """Every model's faces flattened into one table, so all instances transform in one pass.
+
+    Per model m: corner_count[m] face-vertex slots starting at corner_base[m] in corner_xyz,
+    face_count[m] faces starting at face_base[m] in the per-face arrays.
+    """
+
+    corner_count: np.ndarray
+    face_count: np.ndarray
+    corner_base: np.ndarray
+    face_base: np.ndarray
+    corner_xyz: np.ndarray  # (C, 3) float64 model metres, each face's vertices in order
+    normal: np.ndarray  # (F, 3) float64
+    colour: np.ndarray  # (F, 3) float32 linear
+    opacity: np.ndarray  # (F,) float32
+    face_size: np.ndarray  # (F,) int64 vertices per face
+    local_face: np.ndarray  # (F,) int64 index of the face within its model
+
+    @staticmethod
+    def of(models: "tuple[Model, ...]") -> "FaceTable":
+        corner_count = np.array([m.face_index.shape[0] for m in models], np.int64)
+        face_count = np.array([m.face_count for m in models], np.int64)
+        empty = not models
+        return FaceTable(
+            corner_count=corner_count,
+            face_count=face_count,
+            corner_base=np.concatenate([[0], np.cumsum(corner_count)[:-1]]).astype(np.int64),
+            face_base=np.concatenate([[0], np.cumsum(face_count)[:-1]]).astype(np.int64),
+            corner_xyz=np.zeros((0, 3)) if empty else np.concatenate([m.vertices[m.face_index] for m in models]),
+            normal=np.zeros((0, 3)) if empty else np.concatenate([m.normal for m in models]),
+            colour=np.zeros((0, 3), np.float32) if empty else np.concatenate([m.colour for m in models]),
+            opacity=np.zeros(0, np.float32) if empty else np.concatenate([m.opacity for m in models]).astype(np.float32),
+            face_size=np.zeros(0, np.int64) if empty else np.concatenate([np.diff(m.face_start) for m in models]).astype(np.int64),
+            local_face=np.zeros(0, np.int64) if empty else np.concatenate([np.arange(m.face_count) for m in models]).astype(np.int64),
+        )
+
+
+@dataclass(frozen=True)
 class Database:
     """The loaded scene.
 
@@ -254,6 +292,7 @@ class Database:
         earth_height: world z of the earth plane, metres.
         sun: (3,) float64 unit vector towards the sun, world frame.
         ambient: share of a face's colour lit regardless of the sun.
+        faces: all models' faces in one flat table (FaceTable.of(models)).
         source: where the database was loaded from (for messages).
     """
 
@@ -268,6 +307,7 @@ class Database:
     earth_height: float
     sun: np.ndarray
     ambient: float
+    faces: FaceTable
     source: str = ""
 
     @property
