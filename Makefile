@@ -24,7 +24,7 @@ bench: $(STAMP)
 
 # Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.
 proto: $(STAMP)
-	$(PY) -m grpc_tools.protoc -Iproto --python_out=proto --grpc_python_out=proto proto/ig/v1/*.proto
+	$(PY) -m grpc_tools.protoc -Iproto --python_out=proto --pyi_out=proto --grpc_python_out=proto proto/ig/v1/*.proto
 
 clean:
 	rm -rf $(VENV) out

@@ -1,0 +1,259 @@
+"""Frame publication with the synchronous frame lock (docs/frame-lock.md), without a network.
+
+The host publishes frame n, then waits until every channel of the rig has acknowledged n (or the
+sync timeout passes) before it publishes n + 1 at the next tick of its fixed rate. Rendering
+slower than the rate therefore slows the simulation down, as CIGI's synchronous mode does, but
+never lets the channels drift onto different frames.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+import time
+import uuid
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+from channel_worker.pipeline.geometry import check_eyepoint
+from channel_worker.pipeline.types import Eyepoint
+from ig.v1 import frame_pb2
+
+log = logging.getLogger("ig.host")
+
+#: Frames a subscriber may have waiting before the oldest is dropped (counted). In synchronous
+#: mode a channel never has more than one; the bound protects the host from a stalled observer.
+QUEUE_DEPTH = 8
+
+
+class UnknownChannel(ValueError):
+    """A subscription or acknowledgement named a channel that is not in the rig."""
+
+
+class Subscription:
+    """One subscriber's frame queue: bounded, drop-oldest, closed at the end of the run."""
+
+    def __init__(self, subscriber: str, channel_name: str) -> None:
+        self.subscriber = subscriber
+        self.channel_name = channel_name
+        self.dropped = 0
+        self._queue: collections.deque[frame_pb2.Frame] = collections.deque()
+        self._cond = threading.Condition()
+        self._closed = False
+
+    def put(self, frame: frame_pb2.Frame) -> None:
+        with self._cond:
+            if len(self._queue) >= QUEUE_DEPTH:
+                self._queue.popleft()
+                self.dropped += 1
+            self._queue.append(frame)
+            self._cond.notify_all()
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    def get(self, timeout_s: float) -> frame_pb2.Frame | None:
+        """The next frame; None if none came within timeout_s or the run is over (see closed)."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._queue or self._closed, timeout=timeout_s)
+            return self._queue.popleft() if self._queue else None
+
+    @property
+    def closed(self) -> bool:
+        with self._cond:
+            return self._closed and not self._queue
+
+
+@dataclass
+class HostStatus:
+    """Counters of the publisher (mirrors GetHostStatusResponse)."""
+
+    run_id: str
+    frames_published: int = 0
+    eyepoints_rejected: int = 0
+    subscriptions_rejected: int = 0
+    ack_timeouts: dict[str, int] = field(default_factory=dict)
+    ack_failures: dict[str, int] = field(default_factory=dict)
+    queue_drops: dict[str, int] = field(default_factory=dict)
+    subscribers: list[str] = field(default_factory=list)
+    finished: bool = False
+    last_error: str = ""
+
+
+class FramePublisher:
+    """Publishes frames of an eyepoint source at a fixed rate, frame-locked to the channels.
+
+    Args:
+        source: eyepoint at a simulation time in seconds.
+        channels: names of the rig's channels; each must acknowledge every frame.
+        rate_hz: publication rate; simulation time of tick k is k / rate_hz.
+        duration_s: simulated seconds to run.
+        sync_timeout_s: longest wait for the acknowledgements of one frame.
+        observers: observers (e.g. the compositor) to wait for before the first frame.
+        start_timeout_s: longest wait for all channels and observers to subscribe.
+    """
+
+    def __init__(self, *, source: Callable[[float], Eyepoint], channels: Sequence[str],
+                 rate_hz: float = 60.0, duration_s: float = 20.0, sync_timeout_s: float = 10.0,
+                 observers: int = 0, start_timeout_s: float = 120.0,
+                 clock: Callable[[], float] = time.time, run_id: str | None = None) -> None:
+        if not rate_hz > 0:
+            raise ValueError(f"rate_hz: {rate_hz} must be > 0")
+        if not duration_s >= 0:
+            raise ValueError(f"duration_s: {duration_s} must be >= 0")
+        self.source = source
+        self.channels = tuple(channels)
+        self.rate_hz = float(rate_hz)
+        self.duration_s = float(duration_s)
+        self.sync_timeout_s = sync_timeout_s
+        self.observers = observers
+        self.start_timeout_s = start_timeout_s
+        self.clock = clock
+        self.status = HostStatus(run_id=run_id or uuid.uuid4().hex[:12])
+        self.status.ack_timeouts = {c: 0 for c in self.channels}
+        self.status.ack_failures = {c: 0 for c in self.channels}
+        self._subs: list[Subscription] = []
+        self._acks: dict[str, int] = {}
+        self._lock = threading.Condition()
+
+    @property
+    def tick_count(self) -> int:
+        """Ticks in the run: one per 1 / rate_hz of simulated time, both ends included."""
+        return int(round(self.duration_s * self.rate_hz)) + 1
+
+    def subscribe(self, subscriber: str, channel_name: str) -> Subscription:
+        """Register a subscriber; channel_name "" makes it an observer.
+
+        Raises:
+            UnknownChannel: channel_name is neither "" nor a rig channel.
+        """
+        if channel_name and channel_name not in self.channels:
+            with self._lock:
+                self.status.subscriptions_rejected += 1
+                self.status.last_error = (f"channel_name: {channel_name!r} is not a channel of the rig "
+                                          f"({', '.join(self.channels)})")
+            raise UnknownChannel(self.status.last_error)
+        sub = Subscription(subscriber, channel_name)
+        with self._lock:
+            if self.status.finished:
+                sub.close()
+            self._subs.append(sub)
+            self._lock.notify_all()
+        return sub
+
+    def unsubscribe(self, sub: Subscription) -> None:
+        with self._lock:
+            if sub in self._subs:
+                self._subs.remove(sub)
+                self.status.queue_drops[sub.subscriber] = sub.dropped
+
+    def ack(self, channel_name: str, frame_number: int, *, ok: bool = True, error: str = "") -> None:
+        """A channel reports it has handled frame_number.
+
+        Raises:
+            UnknownChannel: channel_name is not a rig channel.
+        """
+        if channel_name not in self.channels:
+            raise UnknownChannel(f"channel_name: {channel_name!r} is not a channel of the rig "
+                                 f"({', '.join(self.channels)})")
+        with self._lock:
+            if not ok:
+                self.status.ack_failures[channel_name] += 1
+                self.status.last_error = f"{channel_name}: frame {frame_number}: {error}"
+                log.warning("channel %s failed frame %d: %s", channel_name, frame_number, error)
+            self._acks[channel_name] = max(self._acks.get(channel_name, -1), frame_number)
+            self._lock.notify_all()
+
+    def snapshot(self) -> HostStatus:
+        """A copy of the counters."""
+        with self._lock:
+            s = self.status
+            drops = dict(s.queue_drops)
+            drops.update({sub.subscriber: sub.dropped for sub in self._subs})
+            return HostStatus(s.run_id, s.frames_published, s.eyepoints_rejected, s.subscriptions_rejected,
+                              dict(s.ack_timeouts), dict(s.ack_failures), drops,
+                              [sub.subscriber for sub in self._subs], s.finished, s.last_error)
+
+    def run(self, stop: threading.Event) -> None:
+        """Publish the whole run (blocking), then close every subscription."""
+        try:
+            self._wait_for_subscribers(stop)
+            start = time.monotonic()
+            number = 0
+            for tick in range(self.tick_count):
+                if stop.is_set():
+                    break
+                # Never faster than the rate; when rendering is slower, the next frame goes at once.
+                delay = start + tick / self.rate_hz - time.monotonic()
+                if delay > 0 and stop.wait(delay):
+                    break
+                sim_time = tick / self.rate_hz
+                sample_time = self.clock()
+                eyepoint = self.source(sim_time)
+                try:
+                    check_eyepoint(eyepoint)
+                except ValueError as exc:
+                    with self._lock:
+                        self.status.eyepoints_rejected += 1
+                        self.status.last_error = f"t={sim_time:.3f}s: {exc}"
+                    log.error("eyepoint refused at t=%.3f s: %s", sim_time, exc)
+                    continue
+                frame = make_frame(number, sim_time, sample_time, eyepoint, self.status.run_id, self.clock())
+                self._publish(frame)
+                self._wait_for_acks(number, stop)
+                number += 1
+        finally:
+            with self._lock:
+                self.status.finished = True
+                subs = list(self._subs)
+            for sub in subs:
+                sub.close()
+
+    def _publish(self, frame: frame_pb2.Frame) -> None:
+        with self._lock:
+            subs = list(self._subs)
+            self.status.frames_published += 1
+        for sub in subs:
+            sub.put(frame)
+
+    def _wait_for_subscribers(self, stop: threading.Event) -> None:
+        def ready() -> bool:
+            names = {s.channel_name for s in self._subs}
+            observers = sum(1 for s in self._subs if not s.channel_name)
+            return stop.is_set() or (all(c in names for c in self.channels) and observers >= self.observers)
+        with self._lock:
+            if not self._lock.wait_for(ready, timeout=self.start_timeout_s):
+                names = {s.channel_name for s in self._subs}
+                missing = [c for c in self.channels if c not in names]
+                log.warning("starting without %s after %.0f s", missing or "observers", self.start_timeout_s)
+
+    def _wait_for_acks(self, number: int, stop: threading.Event) -> None:
+        def done() -> bool:
+            return stop.is_set() or all(self._acks.get(c, -1) >= number for c in self.channels)
+        with self._lock:
+            if not self._lock.wait_for(done, timeout=self.sync_timeout_s):
+                for c in self.channels:
+                    if self._acks.get(c, -1) < number:
+                        self.status.ack_timeouts[c] += 1
+                        log.warning("channel %s did not acknowledge frame %d within %.1f s",
+                                    c, number, self.sync_timeout_s)
+
+
+def make_frame(number: int, sim_time: float, sample_time: float, eyepoint: Eyepoint, run_id: str,
+               publish_time: float) -> frame_pb2.Frame:
+    """The Frame message of one eyepoint."""
+    x, y, z = (float(v) for v in eyepoint.position)
+    return frame_pb2.Frame(
+        frame_number=number, sim_time_s=sim_time, publish_time_unix_s=publish_time,
+        control_sample_time_unix_s=sample_time, run_id=run_id,
+        eyepoint=frame_pb2.Eyepoint(x=x, y=y, z=z, heading_deg=eyepoint.heading_deg,
+                                    pitch_deg=eyepoint.pitch_deg, roll_deg=eyepoint.roll_deg),
+    )
+
+
+def eyepoint_of(msg: frame_pb2.Eyepoint) -> Eyepoint:
+    """The pipeline's Eyepoint of a protobuf Eyepoint."""
+    return Eyepoint.of(msg.x, msg.y, msg.z, msg.heading_deg, msg.pitch_deg, msg.roll_deg)

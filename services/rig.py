@@ -1,0 +1,164 @@
+"""Rig files (docs/rig-format.md): which channels exist, where every service listens."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from channel_worker.pipeline.types import ChannelSpec
+
+
+class RigError(ValueError):
+    """A rig file that cannot be used; the message names the file, the key and the value."""
+
+
+@dataclass(frozen=True)
+class RigChannel:
+    """One channel of the rig: its view and the address of its worker's health server."""
+
+    spec: ChannelSpec
+    address: str
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The whole rig; channels in display order, left to right."""
+
+    host_address: str
+    compositor_address: str
+    channels: tuple[RigChannel, ...]
+    source: str = ""
+
+    def channel(self, name: str) -> RigChannel:
+        """The channel called name.
+
+        Raises:
+            RigError: no such channel.
+        """
+        for ch in self.channels:
+            if ch.name == name:
+                return ch
+        raise RigError(f"channel_name: {name!r} is not a channel of the rig "
+                       f"({', '.join(self.channel_names)})")
+
+    @property
+    def channel_names(self) -> tuple[str, ...]:
+        return tuple(ch.name for ch in self.channels)
+
+    def with_size(self, width: int, height: int) -> "Rig":
+        """The same rig with every channel rendered at width x height pixels."""
+        chans = tuple(replace(ch, spec=replace(ch.spec, width=width, height=height)) for ch in self.channels)
+        return replace(self, channels=chans)
+
+
+def default_rig_path() -> Path:
+    """The default three-channel rig shipped with the package (same as deploy/rigs/default.toml)."""
+    return Path(__file__).resolve().parent / "data" / "default_rig.toml"
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Read and validate a rig file.
+
+    Raises:
+        RigError: unreadable file, invalid TOML, or a bad key or value.
+    """
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise RigError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise RigError(f"{path}: invalid TOML: {exc}") from exc
+    return parse_rig(doc, source=str(path))
+
+
+_CHANNEL_KEYS = {"name", "address", "yaw_deg", "pitch_deg", "roll_deg", "left_deg", "right_deg",
+                 "bottom_deg", "top_deg", "width", "height"}
+_OPTIONAL = {"yaw_deg", "pitch_deg", "roll_deg"}
+
+
+def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
+    """Validate an already-decoded rig document; see load_rig."""
+    def fail(where: str, message: str) -> RigError:
+        return RigError(f"{source}: {where}: {message}")
+
+    for key in doc:
+        if key not in {"host", "compositor", "channels"}:
+            raise fail(key, "unknown key")
+    addresses = {}
+    for section in ("host", "compositor"):
+        table = doc.get(section)
+        if not isinstance(table, dict) or "address" not in table:
+            raise fail(section, "missing table with an 'address' key")
+        for key in table:
+            if key != "address":
+                raise fail(f"{section}.{key}", "unknown key")
+        addresses[section] = _address(table["address"], f"{section}.address", fail)
+    chans = doc.get("channels")
+    if not isinstance(chans, list) or not chans:
+        raise fail("channels", "expected at least one [[channels]] table")
+    out = []
+    for i, ch in enumerate(chans):
+        where = f"channels[{i}]"
+        for key in _CHANNEL_KEYS - _OPTIONAL:
+            if key not in ch:
+                raise fail(where, f"missing key {key!r}")
+        for key in ch:
+            if key not in _CHANNEL_KEYS:
+                raise fail(f"{where}.{key}", "unknown key")
+        name = ch["name"]
+        if not isinstance(name, str) or not name or not name.replace("_", "").replace("-", "").isalnum():
+            raise fail(f"{where}.name", f"{name!r} is not a name (letters, digits, - and _)")
+        if name in {c.name for c in out}:
+            raise fail(f"{where}.name", f"{name!r} is used twice")
+        nums = {}
+        for key in ("yaw_deg", "pitch_deg", "roll_deg", "left_deg", "right_deg", "bottom_deg", "top_deg"):
+            v = ch.get(key, 0.0)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise fail(f"{where}.{key}", f"{v!r} is not a finite number")
+            nums[key] = float(v)
+        for key in ("left_deg", "right_deg", "bottom_deg", "top_deg"):
+            if not -89.0 <= nums[key] <= 89.0:
+                raise fail(f"{where}.{key}", f"{nums[key]} is outside [-89, 89]")
+        if not nums["left_deg"] < nums["right_deg"]:
+            raise fail(f"{where}.left_deg", f"{nums['left_deg']} is not < right_deg {nums['right_deg']}")
+        if not nums["bottom_deg"] < nums["top_deg"]:
+            raise fail(f"{where}.bottom_deg", f"{nums['bottom_deg']} is not < top_deg {nums['top_deg']}")
+        size = {}
+        for key in ("width", "height"):
+            v = ch[key]
+            if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 16384:
+                raise fail(f"{where}.{key}", f"{v!r} is not a whole number of pixels in [1, 16384]")
+            size[key] = v
+        spec = ChannelSpec(name, size["width"], size["height"], nums["left_deg"], nums["right_deg"],
+                           nums["bottom_deg"], nums["top_deg"], nums["yaw_deg"], nums["pitch_deg"],
+                           nums["roll_deg"])
+        out.append(RigChannel(spec, _address(ch["address"], f"{where}.address", fail)))
+    return Rig(addresses["host"], addresses["compositor"], tuple(out), source)
+
+
+def _address(value: Any, where: str, fail) -> str:
+    if not isinstance(value, str) or ":" not in value:
+        raise fail(where, f"{value!r} is not host:port")
+    host, _, port = value.rpartition(":")
+    if not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise fail(where, f"{value!r} is not host:port")
+    return value
+
+
+def port_of(address: str) -> int:
+    """The port of a host:port address."""
+    return int(address.rpartition(":")[2])
+
+
+def bind_address(address: str, bind: str | None) -> str:
+    """Where a service listens: its rig address, or the same port on `bind` when given
+    (for example 0.0.0.0 to accept other machines)."""
+    return address if bind is None else f"{bind}:{port_of(address)}"
