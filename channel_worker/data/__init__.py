@@ -1,0 +1,1 @@
+"""Data shipped with the channel worker: the bundled airfield scene and its generator."""

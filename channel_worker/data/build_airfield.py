@@ -1,0 +1,724 @@
+"""Build the bundled airfield scene, channel_worker/data/airfield.json (docs/scene-format.md).
+
+    python -m channel_worker.data.build_airfield            # rewrite airfield.json
+    python -m channel_worker.data.build_airfield --check    # exit 1 if it is out of date
+
+The scene is laid out for the bundled flight (host_sim/flight.py) and the default rig, whose
+channel seams are at +-30 degrees of azimuth from the nose and whose outer edges are at
++-90 degrees. The airfield is at the world origin:
+
+- runway 36/18, 2000 x 45 m, along x = 0 from its threshold at y = -1000 to y = +1000, surface at
+  z = 0.02 m; white markings (side stripes, centreline, threshold "piano keys", aiming point,
+  touchdown zone) 3 cm above it, at z = 0.05 m;
+- east of it a parallel taxiway, an apron, four hangars and a terminal; the hangars cross the
+  right seam during the take-off roll, the terminal during the climb;
+- west of it the control tower (translucent glass cab), which crosses the left seam during the
+  take-off roll, a fire station (rotation) and fuel tanks (climb);
+- tree lines either side of the runway and a poplar hedge across its far end;
+- further out, a farm (crosses the left channel's outer edge in the descent), cargo sheds north
+  of the terminal (right seam in the turn, right outer edge in the descent), a factory 1.5 km
+  ahead (right seam in the descent), a town 1.5 km to the west-north-west (left seam in the
+  turn and the descent), a water tower, a 150 m radio mast, a power line across the extended
+  centreline and hills 5-11 km away for a skyline.
+
+Every model is assembled from parts made by a few helpers (ground_rect, wall_rect, prism, loft,
+pyramid, dome). A part is either a piece of a convex solid, whose every face must point away
+from the part's centroid, or a decal, whose every face points one given way. The helpers wind
+faces counter-clockwise seen from outside by construction, and make_part() checks that, and that
+each face is planar and strictly convex, before anything is written. Bottoms of solids standing
+on the earth are left out: the eye never goes below ground and the earth plane hides them.
+Vertices are rounded to millimetres, so the file is the same on every machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import random
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+Vec3 = tuple[float, float, float]
+
+#: Where the bundled scene lives (channel_worker.pipeline.scene.bundled_scene_path()).
+OUTPUT = Path(__file__).resolve().with_name("airfield.json")
+
+#: Vertex coordinates are rounded to this many decimals of a metre.
+_DECIMALS = 3
+#: A face vertex may lie this far off the face's plane after rounding, metres.
+_PLANE_TOL_M = 1e-3
+
+# Surfaces painted on the ground: the runway, taxiways and apron lie just above the earth plane,
+# the markings a few centimetres above the runway (docs/scene-format.md: the earth is always
+# drawn behind polygons, so only these two heights must be kept apart).
+PAVEMENT_Z = 0.02
+MARKING_Z = 0.05
+#: Gap between a wall and a decal painted on it (a door, a window band), metres.
+DECAL_OFFSET_M = 0.05
+
+RUNWAY_LENGTH_M = 2000.0
+RUNWAY_WIDTH_M = 45.0
+TAXIWAY_X_M = 110.0  # centreline of the parallel taxiway (east of the runway)
+TAXIWAY_WIDTH_M = 23.0
+
+# Colours, sRGB.
+SKY = "#a4c8ea"
+GRASS = "#5f8a3e"
+ASPHALT = "#46484b"
+CONCRETE = "#7b7d7f"
+PAINT_WHITE = "#f2f2ee"
+PAINT_YELLOW = "#e3b324"
+METAL_WALL = "#b7bcc0"
+METAL_ROOF = "#6f7b85"
+DOOR = "#59626b"
+TOWER_CONCRETE = "#dcd7cd"
+TOWER_TRIM = "#6d7378"
+GLASS = "#5f95ad"
+CONSOLE = "#2e3236"
+BRICK = "#9c5a3f"
+BRICK_ROOF = "#5e4034"
+FIRE_RED = "#b8322a"
+TANK_WHITE = "#e7e8e4"
+STEEL = "#8c9196"
+MAST_RED = "#c8342c"
+GREENS = {"fir": "#2f5a2c", "oak": "#4a7832", "poplar": "#5a8636"}
+
+
+@dataclass(frozen=True)
+class Face:
+    """One polygon of a part; indices into the part's vertices, counter-clockwise from outside."""
+
+    indices: tuple[int, ...]
+    colour: str
+    opacity: float = 1.0
+
+
+@dataclass(frozen=True)
+class Part:
+    """A convex piece of a model, or a decal.
+
+    Attributes:
+        vertices: model coordinates, metres (x right, y forward, z up), rounded to millimetres.
+        faces: the part's polygons.
+        facing: None for a piece of a convex solid (every face points away from the centroid of
+            the part's vertices); for a decal, the unit vector every face's normal equals.
+    """
+
+    vertices: tuple[Vec3, ...]
+    faces: tuple[Face, ...]
+    facing: Vec3 | None = None
+
+
+@dataclass(frozen=True)
+class Instance:
+    """One placement of a model: world position in metres and heading/pitch/roll in degrees."""
+
+    model: str
+    position: Vec3
+    name: str
+    hpr: Vec3 = (0.0, 0.0, 0.0)
+
+
+class GeometryError(ValueError):
+    """A part whose faces break the scene format or point the wrong way."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Vector helpers (plain tuples: the generator is small and must be exact and repeatable).
+
+def _sub(a: Sequence[float], b: Sequence[float]) -> Vec3:
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def _dot(a: Sequence[float], b: Sequence[float]) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _cross(a: Sequence[float], b: Sequence[float]) -> Vec3:
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _mean(points: Sequence[Sequence[float]]) -> Vec3:
+    n = len(points)
+    return (sum(p[0] for p in points) / n, sum(p[1] for p in points) / n,
+            sum(p[2] for p in points) / n)
+
+
+def newell_normal(points: Sequence[Sequence[float]]) -> Vec3:
+    """Unit normal of a polygon by Newell's method; right-handed, so CCW faces the viewer.
+
+    Raises:
+        GeometryError: the polygon has no area.
+    """
+    nx = ny = nz = 0.0
+    for i, p in enumerate(points):
+        q = points[(i + 1) % len(points)]
+        nx += (p[1] - q[1]) * (p[2] + q[2])
+        ny += (p[2] - q[2]) * (p[0] + q[0])
+        nz += (p[0] - q[0]) * (p[1] + q[1])
+    length = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if length < 1e-9:
+        raise GeometryError(f"polygon {points} has no area")
+    return (nx / length, ny / length, nz / length)
+
+
+def _round(v: float) -> float:
+    r = round(v, _DECIMALS)
+    return 0.0 if r == 0.0 else r  # no "-0.0" in the file
+
+
+# ---------------------------------------------------------------------------------------------
+# Parts. Every helper returns a checked Part.
+
+def make_part(vertices: Iterable[Sequence[float]], faces: Iterable[Face], *,
+              facing: Sequence[float] | None = None) -> Part:
+    """Round the vertices to millimetres and check every face.
+
+    Raises:
+        GeometryError: a face is degenerate, not planar, not strictly convex, or faces inwards
+            (solids) or not along `facing` (decals).
+    """
+    verts = tuple((_round(p[0]), _round(p[1]), _round(p[2])) for p in vertices)
+    part = Part(verts, tuple(faces), None if facing is None else tuple(map(float, facing)))
+    centroid = _mean(verts)
+    for k, face in enumerate(part.faces):
+        pts = [verts[i] for i in face.indices]
+        if len(set(face.indices)) != len(pts) or len(pts) < 3:
+            raise GeometryError(f"face {k}: indices {face.indices} are not >= 3 distinct vertices")
+        n = newell_normal(pts)
+        centre = _mean(pts)
+        off_plane = max(abs(_dot(_sub(p, centre), n)) for p in pts)
+        if off_plane > _PLANE_TOL_M:
+            raise GeometryError(f"face {k}: a vertex lies {off_plane:.4g} m off the plane")
+        for i in range(len(pts)):
+            e0 = _sub(pts[(i + 1) % len(pts)], pts[i])
+            e1 = _sub(pts[(i + 2) % len(pts)], pts[(i + 1) % len(pts)])
+            if _dot(_cross(e0, e1), n) <= 1e-9:
+                raise GeometryError(f"face {k}: not strictly convex at vertex {face.indices[i]}")
+        if part.facing is None:
+            if _dot(n, _sub(centre, centroid)) <= 0.0:
+                raise GeometryError(f"face {k}: normal {n} points into the solid")
+        elif _dot(n, part.facing) < 1.0 - 1e-6:
+            raise GeometryError(f"face {k}: normal {n} is not {part.facing}")
+    return part
+
+
+def ground_rect(x0: float, x1: float, y0: float, y1: float, z: float, colour: str) -> Part:
+    """A rectangle painted on the ground (x0 < x1, y0 < y1, metres), facing up."""
+    return make_part([(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)],
+                     [Face((0, 1, 2, 3), colour)], facing=(0.0, 0.0, 1.0))
+
+
+def ground_rects(rects: Iterable[tuple[float, float, float, float]], z: float, colour: str) -> Part:
+    """Several disjoint ground rectangles (x0, x1, y0, y1) as one decal part."""
+    vertices: list[Vec3] = []
+    faces = []
+    for x0, x1, y0, y1 in rects:
+        base = len(vertices)
+        vertices += [(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)]
+        faces.append(Face((base, base + 1, base + 2, base + 3), colour))
+    return make_part(vertices, faces, facing=(0.0, 0.0, 1.0))
+
+
+def wall_rect(x0: float, x1: float, z0: float, z1: float, y: float, colour: str) -> Part:
+    """A rectangle on the plane y = const facing +y (a door or window band on a front wall)."""
+    # Seen from +y the x axis points left, so counter-clockwise runs from +x to -x along the bottom.
+    return make_part([(x1, y, z0), (x0, y, z0), (x0, y, z1), (x1, y, z1)],
+                     [Face((0, 1, 2, 3), colour)], facing=(0.0, 1.0, 0.0))
+
+
+def loft(a: Sequence[Vec3], b: Sequence[Vec3], side_colours: str | Sequence[str | None], *,
+         cap_a: str | None = None, cap_b: str | None = None, opacity: float = 1.0) -> Part:
+    """A convex solid between two corresponding loops a and b (a prism, frustum or extrusion).
+
+    Both loops run counter-clockwise seen from beyond b looking back towards a (for a vertical
+    prism: counter-clockwise seen from above, a the bottom). Side i joins edge i -> i+1 of a to
+    the same edge of b and must be planar; its colour is side_colours[i] (or one colour for
+    every side), None to leave the side out. cap_a / cap_b colour the end faces; None leaves
+    them out. opacity applies to the sides.
+    """
+    n = len(a)
+    if len(b) != n:
+        raise GeometryError(f"loops of {len(a)} and {len(b)} vertices")
+    colours = [side_colours] * n if isinstance(side_colours, str) else list(side_colours)
+    faces = [Face((i, (i + 1) % n, n + (i + 1) % n, n + i), c, opacity)
+             for i, c in enumerate(colours) if c is not None]
+    if cap_b is not None:
+        faces.append(Face(tuple(range(n, 2 * n)), cap_b))
+    if cap_a is not None:
+        faces.append(Face(tuple(reversed(range(n))), cap_a))
+    return make_part(list(a) + list(b), faces)
+
+
+def prism(base: Sequence[tuple[float, float]], z0: float, z1: float, side_colours: str | Sequence[str | None],
+          *, top: str | None = None, bottom: str | None = None, opacity: float = 1.0) -> Part:
+    """A vertical prism over a convex base polygon (x, y counter-clockwise from above), z0 < z1."""
+    return loft([(x, y, z0) for x, y in base], [(x, y, z1) for x, y in base], side_colours,
+                cap_a=bottom, cap_b=top, opacity=opacity)
+
+
+def box(x0: float, x1: float, y0: float, y1: float, z0: float, z1: float, walls: str, *,
+        top: str | None = None, bottom: str | None = None) -> Part:
+    """An axis-aligned box (x0 < x1, y0 < y1, z0 < z1, metres)."""
+    return prism(rect(x0, x1, y0, y1), z0, z1, walls, top=top, bottom=bottom)
+
+
+def pyramid(base: Sequence[Vec3], apex: Vec3, colour: str, *, bottom: str | None = None) -> Part:
+    """A pyramid over a convex planar base (counter-clockwise seen from the apex's side)."""
+    n = len(base)
+    faces = [Face((i, (i + 1) % n, n), colour) for i in range(n)]
+    if bottom is not None:
+        faces.append(Face(tuple(reversed(range(n))), bottom))
+    return make_part(list(base) + [apex], faces)
+
+
+def rect(x0: float, x1: float, y0: float, y1: float) -> list[tuple[float, float]]:
+    """Rectangle corners counter-clockwise from above."""
+    return [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
+
+
+def ngon(cx: float, cy: float, radius: float, n: int, *, phase_deg: float = 0.0,
+         z: float | None = None) -> list:
+    """Regular n-gon counter-clockwise from above; radius to the vertices, metres.
+
+    With z given the points are (x, y, z) triples, otherwise (x, y) pairs.
+    """
+    pts = []
+    for i in range(n):
+        a = math.radians(phase_deg + 360.0 * i / n)
+        x, y = cx + radius * math.cos(a), cy + radius * math.sin(a)
+        pts.append((x, y) if z is None else (x, y, z))
+    return pts
+
+
+def square(half: float, z: float) -> list[Vec3]:
+    """Square of half-size `half` centred on the z axis at height z, counter-clockwise from above."""
+    return [(-half, -half, z), (half, -half, z), (half, half, z), (-half, half, z)]
+
+
+def dome(rings: Sequence[Sequence[Vec3]], apex: Vec3, colours: Sequence[str]) -> Part:
+    """A hill: triangles between successive rings (each counter-clockwise from above, the same
+    vertex count, bottom first) and a fan up to the apex. colours[k] paints band k (the last
+    band is the fan). Triangles are always planar, so the rings may be irregular."""
+    n = len(rings[0])
+    vertices = [p for ring in rings for p in ring] + [apex]
+    faces = []
+    for k in range(len(rings) - 1):
+        lo, hi = k * n, (k + 1) * n
+        for i in range(n):
+            j = (i + 1) % n
+            faces.append(Face((lo + i, lo + j, hi + j), colours[k]))
+            faces.append(Face((lo + i, hi + j, hi + i), colours[k]))
+    top = (len(rings) - 1) * n
+    faces += [Face((top + i, top + (i + 1) % n, len(vertices) - 1), colours[-1]) for i in range(n)]
+    return make_part(vertices, faces)
+
+
+# ---------------------------------------------------------------------------------------------
+# Models (model frame: x right, y forward, z up; the front of a building faces +y).
+
+def runway() -> list[Part]:
+    """The paved runway, x -22.5..22.5, y -1000..1000, with its side stripes."""
+    half_w, half_l = RUNWAY_WIDTH_M / 2.0, RUNWAY_LENGTH_M / 2.0
+    side = [(-half_w + 0.3, -half_w + 1.2, -half_l, half_l), (half_w - 1.2, half_w - 0.3, -half_l, half_l)]
+    return [ground_rect(-half_w, half_w, -half_l, half_l, PAVEMENT_Z, ASPHALT),
+            ground_rects(side, MARKING_Z, PAINT_WHITE)]
+
+
+def runway_centreline() -> list[Part]:
+    """Centreline dashes, 30 m painted and 20 m gap, 0.9 m wide, clear of the end markings."""
+    dash, gap, usable = 30.0, 20.0, 1780.0
+    n = int((usable + gap) // (dash + gap))
+    y0 = -(n * (dash + gap) - gap) / 2.0
+    rects = [(-0.45, 0.45, y0 + k * (dash + gap), y0 + k * (dash + gap) + dash) for k in range(n)]
+    return [ground_rects(rects, MARKING_Z, PAINT_WHITE)]
+
+
+def runway_end_markings() -> list[Part]:
+    """Markings of one runway end; the origin is the threshold centre, +y points down the runway.
+
+    Threshold stripes (12 for a 45 m runway), aiming point at 300 m and touchdown-zone bars at
+    150, 450, 600 and 750 m, after ICAO Annex 14 proportions.
+    """
+    rects = []
+    for k in range(6):  # threshold "piano keys": 1.8 x 30 m, 6 m in from the threshold
+        x = 3.0 + 3.3 * k
+        rects += [(x - 0.9, x + 0.9, 6.0, 36.0), (-x - 0.9, -x + 0.9, 6.0, 36.0)]
+    rects += [(9.0, 15.0, 300.0, 345.0), (-15.0, -9.0, 300.0, 345.0)]  # aiming point
+    for y, bars in ((150.0, 3), (450.0, 2), (600.0, 2), (750.0, 1)):  # touchdown zone
+        for b in range(bars):
+            x = 9.0 + 3.3 * b
+            rects += [(x, x + 1.8, y, y + 22.5), (-x - 1.8, -x, y, y + 22.5)]
+    return [ground_rects(rects, MARKING_Z, PAINT_WHITE)]
+
+
+def taxiways() -> list[Part]:
+    """Parallel taxiway east of the runway, three stubs joining it, the apron, yellow lines."""
+    hw = TAXIWAY_WIDTH_M / 2.0
+    x_tw0, x_tw1 = TAXIWAY_X_M - hw, TAXIWAY_X_M + hw
+    stubs = [(RUNWAY_WIDTH_M / 2.0, x_tw0, y - hw, y + hw) for y in (-950.0, 0.0, 950.0)]
+    paving = [(x_tw0, x_tw1, -950.0 - hw, 950.0 + hw)] + stubs + [(x_tw1, 200.0, -510.0, -60.0)]
+    lines = [(TAXIWAY_X_M - 0.15, TAXIWAY_X_M + 0.15, -950.0, 950.0)]
+    lines += [(RUNWAY_WIDTH_M / 2.0 + 5.0, TAXIWAY_X_M - 0.15, y - 0.15, y + 0.15) for y in (-950.0, 0.0, 950.0)]
+    return [ground_rects(paving, PAVEMENT_Z, CONCRETE), ground_rects(lines, MARKING_Z, PAINT_YELLOW)]
+
+
+def gable_building(width: float, depth: float, eaves: float, ridge: float, walls: str, roof: str,
+                   *, door: tuple[float, float, str] | None = None) -> list[Part]:
+    """A building with a pitched roof: `width` across its front (x), `depth` front to back (y),
+    walls `eaves` high and the ridge (along y) at `ridge`, metres. door = (width, height, colour)
+    paints a door centred on the front wall."""
+    hw, hd = width / 2.0, depth / 2.0
+    # Cross-section in the x-z plane, counter-clockwise seen from the front (+y, where +x is on
+    # the viewer's left): floor edge first (left out below), then up the -x wall, over the ridge.
+    profile = [(hw, 0.0), (-hw, 0.0), (-hw, eaves), (0.0, ridge), (hw, eaves)]
+    back = [(x, -hd, z) for x, z in profile]
+    front = [(x, hd, z) for x, z in profile]
+    body = loft(back, front, [None, walls, roof, roof, walls], cap_a=walls, cap_b=walls)
+    parts = [body]
+    if door is not None:
+        dw, dh, colour = door
+        parts.append(wall_rect(-dw / 2.0, dw / 2.0, 0.0, dh, hd + DECAL_OFFSET_M, colour))
+    return parts
+
+
+def flat_roof_building(width: float, depth: float, height: float, walls: str, roof: str, *,
+                       band: tuple[float, float, str] | None = None) -> list[Part]:
+    """A box building, `width` across its front (x) by `depth` (y) by `height`, metres.
+    band = (z0, z1, colour) paints a window band along the front wall."""
+    hw, hd = width / 2.0, depth / 2.0
+    parts = [box(-hw, hw, -hd, hd, 0.0, height, walls, top=roof)]
+    if band is not None:
+        z0, z1, colour = band
+        parts.append(wall_rect(-hw + 2.0, hw - 2.0, z0, z1, hd + DECAL_OFFSET_M, colour))
+    return parts
+
+
+def control_tower() -> list[Part]:
+    """A 22 m tower: concrete shaft, octagonal cab of translucent glass with a console inside,
+    overhanging roof, antenna; and a low operations building at its foot."""
+    cab_r, phase = 5.0, 22.5  # octagon with flat sides facing the axes
+    return [
+        box(-2.5, 2.5, -2.5, 2.5, 0.0, 17.0, TOWER_CONCRETE),  # top hidden by the cab floor
+        prism(ngon(0.0, 0.0, cab_r + 0.4, 8, phase_deg=phase), 17.0, 17.6, TOWER_TRIM,
+              top=TOWER_TRIM, bottom=TOWER_TRIM),
+        # Glass: sides only. The far panes are back faces and culled, so through the glass one
+        # sees the console and whatever is behind the tower.
+        prism(ngon(0.0, 0.0, cab_r, 8, phase_deg=phase), 17.6, 20.6, GLASS, opacity=0.4),
+        box(-2.0, 2.0, 1.5, 3.2, 17.6, 18.6, CONSOLE, top=CONSOLE),
+        prism(ngon(0.0, 0.0, cab_r + 0.8, 8, phase_deg=phase), 20.6, 21.2, TOWER_TRIM,
+              top=TOWER_TRIM, bottom=TOWER_TRIM),
+        box(-0.15, 0.15, -0.15, 0.15, 21.2, 25.0, STEEL, top=STEEL),
+        box(-9.0, 9.0, -12.0, -2.5, 0.0, 4.0, TOWER_CONCRETE, top=TOWER_TRIM),
+    ]
+
+
+def fuel_tank() -> list[Part]:
+    """An octagonal fuel tank, 16 m across and 10 m high."""
+    return [prism(ngon(0.0, 0.0, 8.0, 8), 0.0, 10.0, TANK_WHITE, top=STEEL)]
+
+
+def silo() -> list[Part]:
+    """A farm silo with a conical roof."""
+    body = prism(ngon(0.0, 0.0, 3.5, 8), 0.0, 14.0, "#c9c6bb")
+    roof = pyramid(ngon(0.0, 0.0, 3.8, 8, z=14.0), (0.0, 0.0, 17.0), "#7d8a91", bottom="#7d8a91")
+    return [body, roof]
+
+
+def water_tower() -> list[Part]:
+    """A 35 m water tower: octagonal shaft carrying an octagonal tank with a pointed roof."""
+    return [
+        prism(ngon(0.0, 0.0, 2.0, 8), 0.0, 25.0, TOWER_CONCRETE),
+        prism(ngon(0.0, 0.0, 7.0, 8), 25.0, 32.0, "#9fb3bf", bottom=STEEL),
+        pyramid(ngon(0.0, 0.0, 7.0, 8, z=32.0), (0.0, 0.0, 35.0), STEEL),
+    ]
+
+
+def radio_mast() -> list[Part]:
+    """A 150 m mast painted in six red and white bands (obstacle marking), tapering 3 -> 1 m."""
+    parts, bands, height = [], 6, 150.0
+    for k in range(bands):
+        z0, z1 = height * k / bands, height * (k + 1) / bands
+        h0, h1 = 1.5 - 1.0 * k / bands, 1.5 - 1.0 * (k + 1) / bands
+        colour = MAST_RED if k % 2 == 0 else PAINT_WHITE
+        parts.append(loft(square(h0, z0), square(h1, z1), colour,
+                          cap_b=colour if k == bands - 1 else None))
+    return parts
+
+
+def pylon() -> list[Part]:
+    """A power-line pylon, 35 m: a tapering steel tower with a cross-arm (x) for the wires."""
+    return [
+        loft(square(4.0, 0.0), square(1.0, 30.0), STEEL),
+        pyramid(square(1.0, 30.0), (0.0, 0.0, 35.0), STEEL),
+        box(-11.0, 11.0, -0.8, 0.8, 26.0, 27.5, STEEL, top=STEEL, bottom=STEEL),
+    ]
+
+
+def factory() -> list[Part]:
+    """A factory hall, 120 x 60 x 20 m, with a 45 m brick chimney behind it."""
+    return flat_roof_building(120.0, 60.0, 20.0, "#b9ac96", "#6c7177",
+                              band=(9.0, 13.0, "#4b5b69")) + [
+        loft([(p[0] + 40.0, p[1] - 40.0, p[2]) for p in square(3.0, 0.0)],
+             [(p[0] + 40.0, p[1] - 40.0, p[2]) for p in square(2.0, 45.0)], BRICK, cap_b=CONSOLE),
+    ]
+
+
+def tree(kind: str, sides: int, radius: float, height: float) -> list[Part]:
+    """A tree as an n-sided pyramid standing on the ground."""
+    return [pyramid(ngon(0.0, 0.0, radius, sides, z=0.0), (0.0, 0.0, height), GREENS[kind])]
+
+
+def hill(seed: int, radius: float, height: float, colours: Sequence[str]) -> list[Part]:
+    """A hill: an irregular 10-sided dome, `radius` and `height` in metres, shaped by `seed`."""
+    rng = random.Random(seed)
+    n = 10
+    shoulder = (0.5 + 0.1 * rng.random()) * radius
+    rings = [
+        [(r * math.cos(a), r * math.sin(a), 0.0) for a, r in
+         ((2.0 * math.pi * i / n, radius * (0.85 + 0.3 * rng.random())) for i in range(n))],
+        [(r * math.cos(a), r * math.sin(a), height * (0.55 + 0.1 * rng.random())) for a, r in
+         ((2.0 * math.pi * (i + 0.5) / n, shoulder * (0.9 + 0.2 * rng.random())) for i in range(n))],
+    ]
+    apex = (radius * 0.1 * (rng.random() - 0.5), radius * 0.1 * (rng.random() - 0.5), height)
+    return [dome(rings, apex, colours)]
+
+
+def build_models() -> dict[str, list[Part]]:
+    """Every model of the scene as its parts, in file order."""
+    models: dict[str, list[Part]] = {
+        "runway": runway(),
+        "runway_centreline": runway_centreline(),
+        "runway_end_markings": runway_end_markings(),
+        "taxiways": taxiways(),
+        "hangar": gable_building(40.0, 50.0, 12.0, 17.0, METAL_WALL, METAL_ROOF, door=(32.0, 10.0, DOOR)),
+        "shed": gable_building(24.0, 30.0, 7.0, 9.5, "#c8b792", BRICK_ROOF, door=(8.0, 5.0, DOOR)),
+        "barn": gable_building(16.0, 30.0, 6.0, 11.0, BRICK, "#4e4a46", door=(5.0, 5.0, "#5b3a2a")),
+        "terminal": flat_roof_building(100.0, 30.0, 12.0, "#d6d0c2", "#8a8f94", band=(4.0, 9.0, "#3f566c")),
+        "fire_station": flat_roof_building(40.0, 24.0, 8.0, "#d9d4c8", "#7b7f84", band=(0.0, 5.5, FIRE_RED)),
+        "control_tower": control_tower(),
+        "fuel_tank": fuel_tank(),
+        "silo": silo(),
+        "water_tower": water_tower(),
+        "radio_mast": radio_mast(),
+        "pylon": pylon(),
+        "factory": factory(),
+        "house": gable_building(10.0, 14.0, 5.0, 8.0, "#e1d6bf", "#8e3b2c"),
+        "block_low": flat_roof_building(40.0, 30.0, 12.0, "#c7b9a3", "#6e6a66"),
+        "block_mid": flat_roof_building(30.0, 30.0, 24.0, "#b3aba0", "#5f6266", band=(20.0, 22.0, "#4b5b69")),
+        "block_tall": flat_roof_building(20.0, 20.0, 42.0, "#9aa3ab", "#5a5e62"),
+        "fir": tree("fir", 7, 3.0, 14.0),
+        "oak": tree("oak", 6, 5.0, 11.0),
+        "poplar": tree("poplar", 6, 1.8, 18.0),
+    }
+    for k, (seed, radius, height) in enumerate(HILLS_SHAPE):
+        models[f"hill_{k + 1}"] = hill(seed, radius, height, HILL_COLOURS[k % len(HILL_COLOURS)])
+    return models
+
+
+# Hills: (shape seed, base radius m, height m) and, below, where they stand.
+HILLS_SHAPE = ((11, 1800.0, 420.0), (12, 2400.0, 600.0), (13, 1500.0, 330.0), (14, 2600.0, 650.0),
+               (15, 2000.0, 480.0), (16, 1700.0, 380.0), (17, 2200.0, 540.0), (18, 1600.0, 320.0),
+               (19, 2500.0, 560.0))
+HILLS_AT = ((-125.0, 8000.0), (-95.0, 9500.0), (-65.0, 7500.0), (-38.0, 10500.0), (-12.0, 8500.0),
+            (12.0, 9000.0), (38.0, 7000.0), (62.0, 10000.0), (92.0, 8000.0))  # (bearing deg, range m)
+HILL_COLOURS = (("#6f8660", "#7d9169"), ("#728a6d", "#84977b"), ("#6a7f66", "#7a8d74"))
+
+
+# ---------------------------------------------------------------------------------------------
+# Placement. Positions were chosen with the bundled flight (host_sim/flight.py) so that objects
+# cross the seams in every phase; tests/channel_worker/test_bundled_scene.py keeps the two in step.
+
+def build_instances() -> list[Instance]:
+    """Every instance of the scene, in file order."""
+    out = [
+        Instance("runway", (0.0, 0.0, 0.0), "runway 36/18"),
+        Instance("runway_centreline", (0.0, 0.0, 0.0), "runway centreline"),
+        Instance("runway_end_markings", (0.0, -1000.0, 0.0), "runway 36 threshold"),
+        Instance("runway_end_markings", (0.0, 1000.0, 0.0), "runway 18 threshold", (180.0, 0.0, 0.0)),
+        Instance("taxiways", (0.0, 0.0, 0.0), "taxiway A and apron"),
+    ]
+    # East side; building fronts face west, towards the runway (heading 270).
+    west = (270.0, 0.0, 0.0)
+    for k, y in enumerate((-480.0, -420.0, -360.0, -300.0)):  # right seam, t = 0..8 s
+        out.append(Instance("hangar", (225.0, y, 0.0), f"hangar {k + 1}", west))
+    out.append(Instance("terminal", (215.0, -120.0, 0.0), "terminal", west))  # right seam in the climb
+    for k, y in enumerate((130.0, 170.0, 210.0)):  # right seam in the turn, right edge in the descent
+        out.append(Instance("shed", (215.0, y, 0.0), f"cargo shed {k + 1}", west))
+    # West side; fronts face east (heading 90).
+    east = (90.0, 0.0, 0.0)
+    out.append(Instance("control_tower", (-140.0, -600.0, 0.0), "control tower", east))  # left seam, t ~ 3 s
+    out.append(Instance("fire_station", (-150.0, -420.0, 0.0), "fire station", east))  # left seam, rotation
+    for k, x in enumerate((-190.0, -168.0, -146.0)):  # left seam in the climb
+        out.append(Instance("fuel_tank", (x, -250.0, 0.0), f"fuel tank {k + 1}"))
+    out += [  # left outer edge in the descent
+        Instance("barn", (-480.0, -330.0, 0.0), "farm barn", (30.0, 0.0, 0.0)),
+        Instance("silo", (-455.0, -352.0, 0.0), "farm silo"),
+    ]
+    out += _trees()
+    # Further out.
+    out.append(Instance("factory", (-380.0, 1450.0, 0.0), "factory", (180.0, 0.0, 0.0)))  # right seam, descent
+    out.append(Instance("water_tower", (-700.0, 900.0, 0.0), "water tower"))
+    out.append(Instance("radio_mast", (1200.0, 2200.0, 0.0), "radio mast"))
+    for k, x in enumerate(range(-2400, 2401, 400)):  # a power line across the extended centreline
+        out.append(Instance("pylon", (float(x), 1600.0, 0.0), f"pylon {k + 1}"))
+    out += _town()
+    for k, (bearing, rng) in enumerate(HILLS_AT):
+        b = math.radians(bearing)
+        out.append(Instance(f"hill_{k + 1}", (_round(rng * math.sin(b)), _round(rng * math.cos(b)), 0.0),
+                            f"hill {k + 1}"))
+    return out
+
+
+def _trees() -> list[Instance]:
+    """Tree lines either side of the runway, a poplar hedge across the far end, a small wood.
+
+    Jitter comes from a seeded generator, so the rows look planted by hand but never change.
+    """
+    rng = random.Random(36)
+    out = []
+
+    def plant(kind: str, x: float, y: float, label: str) -> None:
+        out.append(Instance(kind, (_round(x), _round(y), 0.0), label,
+                            (_round(rng.uniform(0.0, 360.0)), 0.0, 0.0)))
+
+    for k, y in enumerate(range(-1040, 1041, 40)):
+        plant("fir" if k % 3 else "oak", -300.0 + rng.uniform(-4.0, 4.0), y + rng.uniform(-6.0, 6.0),
+              f"west tree line {k + 1}")
+    for k, y in enumerate(range(-1040, 681, 40)):
+        plant("oak" if k % 2 else "fir", 330.0 + rng.uniform(-4.0, 4.0), y + rng.uniform(-6.0, 6.0),
+              f"east tree line {k + 1}")
+    for k, x in enumerate(range(-700, 701, 40)):
+        plant("poplar", x + rng.uniform(-3.0, 3.0), 1250.0 + rng.uniform(-2.0, 2.0), f"hedge {k + 1}")
+    for k in range(14):
+        r, a = 150.0 * math.sqrt(rng.random()), rng.uniform(0.0, 2.0 * math.pi)
+        plant("oak" if k % 2 else "fir", -700.0 + r * math.cos(a), 420.0 + r * math.sin(a), f"wood {k + 1}")
+    return out
+
+
+def _town() -> list[Instance]:
+    """A small town 1.5 km west-north-west of the airfield (left seam in the turn and descent)."""
+    layout = (("block_tall", -1500.0, 520.0, 0.0), ("block_mid", -1440.0, 440.0, 10.0),
+              ("block_mid", -1580.0, 600.0, -5.0), ("block_low", -1420.0, 560.0, 0.0),
+              ("block_low", -1560.0, 420.0, 15.0), ("block_low", -1640.0, 500.0, 90.0),
+              ("house", -1360.0, 480.0, 100.0), ("house", -1350.0, 520.0, 95.0),
+              ("house", -1380.0, 380.0, 80.0), ("house", -1470.0, 640.0, 160.0),
+              ("house", -1520.0, 360.0, 20.0), ("block_tall", -1620.0, 380.0, 30.0))
+    return [Instance(model, (x, y, 0.0), f"town {model} {k + 1}", (h, 0.0, 0.0))
+            for k, (model, x, y, h) in enumerate(layout)]
+
+
+# ---------------------------------------------------------------------------------------------
+# The document.
+
+def build_scene() -> dict[str, Any]:
+    """The scene document (docs/scene-format.md) as plain JSON data."""
+    models = build_models()
+    instances = build_instances()
+    unknown = {i.model for i in instances} - set(models)
+    if unknown:
+        raise GeometryError(f"instances of undefined models: {sorted(unknown)}")
+    return {
+        "format": "ig-scene/1",
+        "name": "bundled airfield",
+        "sky": {"colour": SKY},
+        "earth": {"colour": GRASS, "height_m": 0.0},
+        # Sun in the south-south-west behind the departing aircraft: the faces the flight looks
+        # at are lit, and east/west walls differ in shade.
+        "lighting": {"sun_heading_deg": 210.0, "sun_elevation_deg": 38.0, "ambient": 0.4},
+        "models": {name: _model_doc(parts) for name, parts in models.items()},
+        "instances": [_instance_doc(i) for i in instances],
+    }
+
+
+def _model_doc(parts: Sequence[Part]) -> dict[str, Any]:
+    vertices: list[list[float]] = []
+    faces: list[dict[str, Any]] = []
+    for part in parts:
+        base = len(vertices)
+        vertices += [list(v) for v in part.vertices]
+        for f in part.faces:
+            face: dict[str, Any] = {"indices": [base + i for i in f.indices], "colour": f.colour}
+            if f.opacity != 1.0:
+                face["opacity"] = f.opacity
+            faces.append(face)
+    return {"vertices": vertices, "faces": faces}
+
+
+def _instance_doc(inst: Instance) -> dict[str, Any]:
+    doc: dict[str, Any] = {"model": inst.model, "position": [float(c) for c in inst.position]}
+    if any(inst.hpr):
+        doc["hpr"] = [float(a) for a in inst.hpr]
+    doc["name"] = inst.name
+    return doc
+
+
+def render_json(doc: Any) -> str:
+    """The document as text: one vertex, face or instance per line, so diffs stay readable."""
+    return _dump(doc, 0) + "\n"
+
+
+def _dump(value: Any, indent: int) -> str:
+    if _is_leafy(value):
+        return json.dumps(value, ensure_ascii=False)
+    pad, inner = " " * indent, " " * (indent + 2)
+    if isinstance(value, dict):
+        items = [f"{inner}{json.dumps(k)}: {_dump(v, indent + 2)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + "\n" + pad + "}"
+    items = [inner + _dump(v, indent + 2) for v in value]
+    return "[\n" + ",\n".join(items) + "\n" + pad + "]"
+
+
+def _is_leafy(value: Any) -> bool:
+    """Whether a value goes on one line: a scalar, a list of scalars, or an object of those."""
+    def scalar_or_flat(v: Any) -> bool:
+        return not isinstance(v, (dict, list)) or (
+            isinstance(v, list) and all(not isinstance(x, (dict, list)) for x in v))
+    if isinstance(value, dict):
+        return all(scalar_or_flat(v) for v in value.values()) and len(value) <= 4
+    return scalar_or_flat(value)
+
+
+def statistics(doc: dict[str, Any]) -> dict[str, int]:
+    """Counts that describe the scene: models, their faces, instances, and the faces and
+    translucent faces of all instances together (what the pipeline transforms per frame)."""
+    faces = {name: m["faces"] for name, m in doc["models"].items()}
+    placed = [faces[i["model"]] for i in doc["instances"]]
+    return {
+        "models": len(faces),
+        "model_faces": sum(len(f) for f in faces.values()),
+        "instances": len(placed),
+        "instance_faces": sum(len(f) for f in placed),
+        "translucent_faces": sum(1 for f in placed for face in f if face.get("opacity", 1.0) < 1.0),
+    }
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Write (or with --check, verify) the bundled scene; returns the process exit status."""
+    parser = argparse.ArgumentParser(prog="python -m channel_worker.data.build_airfield",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("--output", type=Path, default=OUTPUT, help=f"default: {OUTPUT}")
+    parser.add_argument("--check", action="store_true",
+                        help="do not write; exit 1 if the file differs from what would be written")
+    args = parser.parse_args(argv)
+    doc = build_scene()
+    text = render_json(doc)
+    stats = ", ".join(f"{k} {v}" for k, v in statistics(doc).items())
+    if args.check:
+        current = args.output.read_text(encoding="utf-8") if args.output.exists() else None
+        if current != text:
+            print(f"{args.output} is out of date; run python -m channel_worker.data.build_airfield",
+                  file=sys.stderr)
+            return 1
+        print(f"{args.output} is up to date ({stats})")
+        return 0
+    args.output.write_text(text, encoding="utf-8")
+    print(f"wrote {args.output} ({stats})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,123 @@
+"""Frame publication and the synchronous frame lock, without a network."""
+
+import threading
+
+import pytest
+
+from channel_worker.pipeline.types import Eyepoint
+from host_sim.publisher import FramePublisher, UnknownChannel
+
+
+def source(t):
+    return Eyepoint.of(t, 2 * t, 10.0, (350 + 10 * t) % 360, 0.0, 0.0)
+
+
+def drain(sub):
+    frames = []
+    while True:
+        f = sub.get(0.01)
+        if f is None:
+            if sub.closed:
+                return frames
+            continue
+        frames.append(f)
+
+
+def run_with_channels(pub, channels, *, fail_on=None, skip_acks=()):
+    """Run pub with fake channels that acknowledge every frame they receive."""
+    subs = {c: pub.subscribe(f"w-{c}", c) for c in channels}
+    observer = pub.subscribe("obs", "")
+    received = {c: [] for c in channels}
+
+    def channel(c):
+        sub = subs[c]
+        while True:
+            f = sub.get(0.05)
+            if f is None:
+                if sub.closed:
+                    return
+                continue
+            received[c].append(f.frame_number)
+            if c not in skip_acks:
+                ok = fail_on is None or f.frame_number != fail_on
+                pub.ack(c, f.frame_number, ok=ok, error="" if ok else "boom")
+
+    seen = []
+    threads = [threading.Thread(target=channel, args=(c,)) for c in channels]
+    threads.append(threading.Thread(target=lambda: seen.extend(drain(observer))))
+    for t in threads:
+        t.start()
+    pub.run(threading.Event())
+    for t in threads:
+        t.join()
+    return received, seen
+
+
+def test_frames_are_numbered_strictly_increasing_and_timed():
+    pub = FramePublisher(source=source, channels=["a", "b"], rate_hz=200.0, duration_s=0.1, observers=1)
+    received, seen = run_with_channels(pub, ["a", "b"])
+    numbers = [f.frame_number for f in seen]
+    assert numbers == list(range(pub.tick_count))
+    assert received["a"] == received["b"] == numbers
+    assert all(f.run_id == pub.status.run_id for f in seen)
+    assert [round(f.sim_time_s, 9) for f in seen] == [round(k / 200.0, 9) for k in range(pub.tick_count)]
+    assert all(f.control_sample_time_unix_s <= f.publish_time_unix_s for f in seen)
+    assert pub.snapshot().frames_published == pub.tick_count
+    assert pub.snapshot().finished
+
+
+def test_nan_eyepoint_is_rejected_and_counted_and_the_run_goes_on():
+    def bad_at_3(t):
+        e = source(t)
+        if abs(t - 3 / 100) < 1e-9:
+            return Eyepoint.of(float("nan"), 0, 0, 0, 0, 0)
+        return e
+    pub = FramePublisher(source=bad_at_3, channels=["a"], rate_hz=100.0, duration_s=0.09, observers=1)
+    _, seen = run_with_channels(pub, ["a"])
+    status = pub.snapshot()
+    assert status.eyepoints_rejected == 1
+    assert "eyepoint.position[0]: nan is not finite" in status.last_error
+    assert len(seen) == pub.tick_count - 1
+    numbers = [f.frame_number for f in seen]
+    assert numbers == sorted(set(numbers))  # still strictly increasing
+
+
+def test_unknown_channel_is_refused_naming_it():
+    pub = FramePublisher(source=source, channels=["left", "right"], duration_s=0.0)
+    with pytest.raises(UnknownChannel, match=r"channel_name: 'middle' is not a channel of the rig \(left, right\)"):
+        pub.subscribe("x", "middle")
+    with pytest.raises(UnknownChannel, match="'middle'"):
+        pub.ack("middle", 0)
+    assert pub.snapshot().subscriptions_rejected == 1
+
+
+def test_sync_waits_for_acks_and_counts_timeouts():
+    pub = FramePublisher(source=source, channels=["a", "slow"], rate_hz=1000.0, duration_s=0.002,
+                         sync_timeout_s=0.05, observers=0)
+    received, _ = run_with_channels(pub, ["a", "slow"], skip_acks={"slow"})
+    status = pub.snapshot()
+    assert status.ack_timeouts == {"a": 0, "slow": pub.tick_count}
+    assert received["slow"] == list(range(pub.tick_count))
+
+
+def test_failed_ack_is_counted():
+    pub = FramePublisher(source=source, channels=["a"], rate_hz=1000.0, duration_s=0.003, observers=0)
+    run_with_channels(pub, ["a"], fail_on=1)
+    status = pub.snapshot()
+    assert status.ack_failures == {"a": 1}
+    assert "frame 1: boom" in status.last_error
+
+
+def test_a_stalled_subscriber_drops_oldest_and_never_blocks_others():
+    pub = FramePublisher(source=source, channels=["a"], rate_hz=1000.0, duration_s=0.05, observers=0)
+    stalled = pub.subscribe("stalled", "")
+    received, _ = run_with_channels(pub, ["a"])
+    assert received["a"] == list(range(pub.tick_count))
+    assert stalled.dropped > 0
+    left = drain(stalled)
+    assert left[-1].frame_number == pub.tick_count - 1  # the newest frames are kept
+
+
+def test_bad_rate_is_named():
+    with pytest.raises(ValueError, match="rate_hz: 0.0 must be > 0"):
+        FramePublisher(source=source, channels=["a"], rate_hz=0.0)

@@ -1,0 +1,185 @@
+"""The real rig: host, three workers and the compositor as processes over gRPC on localhost.
+
+One short run is shared by the tests of this module. While it runs, the fixture checks every
+process's health and throws bad input at the running rig: a NaN eyepoint and an unknown channel
+submitted to the compositor, an unknown channel subscribing to the host, a worker started on a
+malformed scene. The run must still finish with every frame complete.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import grpc
+import numpy as np
+import pytest
+
+from ig.v1 import compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc
+from services.demo import local_rig, rig_toml
+from services.grpc_util import check_health, make_channel
+from services.image_io import read_image
+from services.rig import default_rig_path, load_rig
+
+pytestmark = pytest.mark.integration
+
+W, H = 96, 72
+RATE, DURATION = 10.0, 3.0
+EXPECTED = int(round(RATE * DURATION)) + 1
+ROOT = Path(__file__).resolve().parent.parent.parent
+
+
+def start(argv, log):
+    env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
+    return subprocess.Popen([sys.executable, "-m", "services.cli", *argv], stdout=log, stderr=subprocess.STDOUT,
+                            env=env, cwd=ROOT)
+
+
+def wait_serving(address, proc, timeout_s=180.0):
+    """The health status of a process, once it answers; EXITED if it died first."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            return f"EXITED {proc.returncode}"
+        try:
+            return check_health(address, timeout_s=1.0)
+        except grpc.RpcError:
+            time.sleep(0.1)
+    return "UNREACHABLE"
+
+
+def wait_all(procs, timeout_s=300.0):
+    """Exit codes once every process has ended; a process that fails ends the run at once."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        codes = {name: p.poll() for name, p in procs.items()}
+        if all(c is not None for c in codes.values()) or any(c not in (None, 0) for c in codes.values()):
+            return codes
+        time.sleep(0.2)
+    return {name: p.poll() for name, p in procs.items()}
+
+
+@pytest.fixture(scope="module")
+def rig_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("rig")
+    rig = local_rig(load_rig(default_rig_path()).with_size(W, H))
+    rig_path = tmp / "rig.toml"
+    rig_path.write_text(rig_toml(rig))
+    out = tmp / "out"
+    logs = {}
+    procs = {}
+
+    def launch(name, argv):
+        logs[name] = open(tmp / f"{name}.log", "w")
+        procs[name] = start(argv, logs[name])
+
+    result = {"tmp": tmp, "out": out, "rig": rig}
+    try:
+        launch("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out), "--exr-every", "10", "--once"])
+        for ch in rig.channels:
+            launch(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name, "--samples", "4",
+                                         "--once"])
+        launch("host", ["host", "--rig", str(rig_path), "--rate", str(RATE), "--duration", str(DURATION),
+                        "--sync-timeout", "20"])
+        # Health of every process while the run is on.
+        result["health"] = {name: wait_serving(addr, procs[proc]) for name, addr, proc in
+                            [("host", rig.host_address, "host"),
+                             ("compositor", rig.compositor_address, "compositor")]
+                            + [(ch.name, ch.address, f"worker-{ch.name}") for ch in rig.channels]}
+        result["bad"] = throw_bad_input(rig, tmp, rig_path)
+        result["exit"] = wait_all(procs)
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        for f in logs.values():
+            f.close()
+    result["logs"] = {name: (tmp / f"{name}.log").read_text() for name in logs}
+    report = out / "report.json"
+    result["report"] = json.loads(report.read_text()) if report.exists() else {}
+    return result
+
+
+def throw_bad_input(rig, tmp, rig_path):
+    bad = {}
+    nan_eye = frame_pb2.Eyepoint(x=float("nan"), y=0.0, z=10.0)
+    px = np.zeros((H, W, 3), "<f2").tobytes()
+    with make_channel(rig.compositor_address) as ch:
+        stub = compositor_pb2_grpc.CompositorServiceStub(ch)
+        for key, name, eye in (("nan_eyepoint", "centre", nan_eye),
+                               ("unknown_channel", "bogus", frame_pb2.Eyepoint(z=10.0))):
+            req = compositor_pb2.SubmitChannelImageRequest(
+                frame_number=10**9, channel_name=name, width=W, height=H,
+                pixel_format=compositor_pb2.PIXEL_FORMAT_RGB_F16, pixels=px, eyepoint=eye)
+            try:
+                stub.SubmitChannelImage(req, timeout=5)
+                bad[key] = ("OK", "")
+            except grpc.RpcError as exc:
+                bad[key] = (exc.code().name, exc.details())
+    with make_channel(rig.host_address) as ch:
+        stub = host_pb2_grpc.HostServiceStub(ch)
+        try:
+            for _ in stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="rogue", channel_name="middle"),
+                                          timeout=5):
+                break
+            bad["subscribe"] = ("OK", "")
+        except grpc.RpcError as exc:
+            bad["subscribe"] = (exc.code().name, exc.details())
+    malformed = tmp / "malformed.json"
+    malformed.write_text('{"format": "ig-scene/1", "sky": {"colour": "#zzzzzz"}, "earth": {"colour": "#000000"},'
+                         ' "models": {}, "instances": []}')
+    proc = subprocess.run([sys.executable, "-m", "services.cli", "worker", "--rig", str(rig_path), "--channel",
+                           "centre", "--scene", str(malformed)], capture_output=True, text=True, cwd=ROOT,
+                          timeout=120)
+    bad["malformed_scene"] = (proc.returncode, proc.stderr)
+    return bad
+
+
+def test_every_process_reports_serving(rig_run):
+    assert rig_run["health"] == {n: "SERVING" for n in ("host", "compositor", "left", "centre", "right")}
+
+
+def test_every_frame_is_complete_and_stitched_from_the_same_frame(rig_run):
+    report = rig_run["report"]
+    assert report["frames_published"] == EXPECTED
+    assert report["frames_complete"] == EXPECTED
+    assert report["frames_incomplete"] == {"missing_channel": 0, "eyepoint_mismatch": 0}
+    assert report["late_images"] == 0
+    assert report["frames_skipped"] == {"left": 0, "centre": 0, "right": 0}
+    assert report["host"]["ack_timeouts"] == {"left": 0, "centre": 0, "right": 0}
+    pngs = sorted((rig_run["out"] / "frames").glob("frame_*.png"))
+    assert len(pngs) == EXPECTED
+    for png in pngs:
+        pixels, attrs = read_image(png)
+        assert pixels.shape == (H, 3 * W, 3)
+        assert attrs["channels"] == "left,centre,right"
+        assert int(attrs["frame_number"]) == int(png.stem.split("_")[1])
+    exrs = sorted((rig_run["out"] / "frames").glob("frame_*.exr"))
+    assert [p.stem for p in exrs] == [f"frame_{n:06d}" for n in range(0, EXPECTED, 10)]
+    for p in ("p50_ms", "p95_ms", "p99_ms"):
+        assert report["control_to_composite_latency"][p] > 0
+        assert all(report["render_time"][c][p] > 0 for c in ("left", "centre", "right"))
+
+
+def test_every_process_exits_cleanly(rig_run):
+    assert rig_run["exit"] == {"compositor": 0, "worker-left": 0, "worker-centre": 0, "worker-right": 0, "host": 0}, \
+        rig_run["logs"]
+
+
+def test_bad_input_gets_named_errors_and_the_rig_keeps_running(rig_run):
+    bad = rig_run["bad"]
+    assert bad["nan_eyepoint"][0] == "INVALID_ARGUMENT" and "eyepoint.x: nan is not finite" in bad["nan_eyepoint"][1]
+    assert bad["unknown_channel"][0] == "INVALID_ARGUMENT" and "channel_name: 'bogus'" in bad["unknown_channel"][1]
+    assert bad["subscribe"][0] == "INVALID_ARGUMENT" and "channel_name: 'middle'" in bad["subscribe"][1]
+    code, err = bad["malformed_scene"]
+    assert code == 2 and "malformed.json: sky.colour" in err and "#zzzzzz" in err
+    report = rig_run["report"]
+    assert report["rejected_submissions"] == {"non_finite_eyepoint": 1, "unknown_channel": 1}
+    assert report["host"]["subscriptions_rejected"] == 1
+    assert report["frames_complete"] == EXPECTED  # nothing else was lost

@@ -1,0 +1,55 @@
+"""The compositor servicer in an in-process server on port 0."""
+
+import json
+import threading
+
+import grpc
+import numpy as np
+import pytest
+
+from ig.v1 import compositor_pb2, compositor_pb2_grpc, frame_pb2
+from services.compositor.server import Compositor, CompositorServicer
+from services.grpc_util import add_health, check_health, make_channel, make_server
+from services.image_io import read_image
+
+
+@pytest.fixture
+def served(tmp_path):
+    comp = Compositor(("a", "b"), tmp_path, exr_every=1)
+    server = make_server()
+    compositor_pb2_grpc.add_CompositorServiceServicer_to_server(CompositorServicer(comp), server)
+    add_health(server, ["ig.v1.CompositorService"])
+    port = server.add_insecure_port("127.0.0.1:0")
+    server.start()
+    yield comp, f"127.0.0.1:{port}"
+    server.stop(0).wait()
+
+
+def req(n, ch, **kw):
+    px = np.full((2, 3, 3), 0.5, "<f2")
+    e = frame_pb2.Eyepoint(x=1.0, y=2.0, z=3.0)
+    base = dict(frame_number=n, channel_name=ch, width=3, height=2, pixel_format=compositor_pb2.PIXEL_FORMAT_RGB_F16,
+                pixels=px.tobytes(), eyepoint=e)
+    base.update(kw)
+    return compositor_pb2.SubmitChannelImageRequest(**base)
+
+
+def test_submit_report_health_and_invalid_argument(served, tmp_path):
+    comp, address = served
+    assert check_health(address) == "SERVING"
+    comp.gatherer.on_published(frame_pb2.Frame(frame_number=0, eyepoint=frame_pb2.Eyepoint(x=1.0, y=2.0, z=3.0)))
+    with make_channel(address) as ch:
+        stub = compositor_pb2_grpc.CompositorServiceStub(ch)
+        stub.SubmitChannelImage(req(0, "a"), timeout=5)
+        stub.SubmitChannelImage(req(0, "b"), timeout=5)
+        with pytest.raises(grpc.RpcError) as err:
+            stub.SubmitChannelImage(req(0, "zz"), timeout=5)
+        assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert "channel_name: 'zz'" in err.value.details()
+        doc = comp.finish(grace_s=1.0)
+        assert doc["frames_complete"] == 1
+        report = json.loads(stub.GetCompositorReport(compositor_pb2.GetCompositorReportRequest(), timeout=5).report_json)
+        assert report["rejected_submissions"] == {"unknown_channel": 1}
+    pixels, attrs = read_image(tmp_path / "frames" / "frame_000000.exr")
+    assert pixels.shape == (2, 6, 3) and attrs["channels"] == "a,b"
+    assert json.loads((tmp_path / "report.json").read_text())["frames_complete"] == 1

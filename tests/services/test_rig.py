@@ -1,0 +1,59 @@
+"""Rig files."""
+
+import pytest
+
+from services.rig import RigError, default_rig_path, load_rig, parse_rig
+
+ROOT = default_rig_path().parent.parent.parent
+
+
+def test_default_rig_is_three_60x45_channels():
+    rig = load_rig(default_rig_path())
+    assert rig.channel_names == ("left", "centre", "right")
+    assert [c.spec.yaw_deg for c in rig.channels] == [-60.0, 0.0, 60.0]
+    for c in rig.channels:
+        s = c.spec
+        assert (s.right_deg - s.left_deg, s.top_deg - s.bottom_deg) == (60.0, 45.0)
+        assert (s.width, s.height) == (1024, 768)
+        assert c.address.startswith("127.0.0.1:")
+    assert rig.host_address.startswith("127.0.0.1:")
+
+
+def test_deploy_copy_matches_package_copy():
+    assert (ROOT / "deploy" / "rigs" / "default.toml").read_text() == default_rig_path().read_text()
+    assert load_rig(ROOT / "deploy" / "rigs" / "three-machines.toml").channel_names == ("left", "centre", "right")
+
+
+def doc():
+    return {"host": {"address": "127.0.0.1:1"}, "compositor": {"address": "127.0.0.1:2"},
+            "channels": [{"name": "c", "address": "127.0.0.1:3", "left_deg": -30.0, "right_deg": 30.0,
+                          "bottom_deg": -20.0, "top_deg": 20.0, "width": 64, "height": 48}]}
+
+
+@pytest.mark.parametrize("mutate,pattern", [
+    (lambda d: d["channels"][0].update(width=0), r"channels\[0\].width: 0 is not a whole number"),
+    (lambda d: d["channels"][0].update(left_deg=40.0), r"channels\[0\].left_deg: 40.0 is not < right_deg 30.0"),
+    (lambda d: d["channels"][0].update(top_deg=95.0), r"channels\[0\].top_deg: 95.0 is outside"),
+    (lambda d: d["channels"][0].update(fov=3), r"channels\[0\].fov: unknown key"),
+    (lambda d: d["host"].update(address="nowhere"), r"host.address: 'nowhere' is not host:port"),
+    (lambda d: d["channels"].append(dict(d["channels"][0])), r"channels\[1\].name: 'c' is used twice"),
+    (lambda d: d["channels"][0].update(yaw_deg=float("nan")), r"channels\[0\].yaw_deg: nan is not a finite"),
+])
+def test_bad_rig_names_key_and_value(mutate, pattern):
+    d = doc()
+    mutate(d)
+    with pytest.raises(RigError, match=pattern):
+        parse_rig(d, source="r.toml")
+
+
+def test_unknown_channel_name():
+    rig = parse_rig(doc())
+    with pytest.raises(RigError, match=r"channel_name: 'bogus' is not a channel of the rig \(c\)"):
+        rig.channel("bogus")
+
+
+def test_invalid_toml(tmp_path):
+    p = tmp_path / "r.toml"
+    p.write_text("[host\n")
+    with pytest.raises(RigError, match="invalid TOML"):
+        load_rig(p)
