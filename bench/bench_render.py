@@ -95,7 +95,8 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     out = []
     for (width, height) in SIZES:
         for samples in SAMPLES:
-            cases = [r for r in rows if (r["width"], r["height"], r["samples"]) == (width, height, samples)]
+            cases = [r for r in rows
+                     if (r["width"], r["height"], r["samples"]) == (width, height, samples)]
             if not cases:
                 continue
             worst = max(cases, key=lambda r: r["total_ms"])
@@ -107,7 +108,8 @@ def summarise(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
-def print_table(rows: list[dict[str, Any]], summary: list[dict[str, Any]], stages: list[str]) -> None:
+def print_table(rows: list[dict[str, Any]], summary: list[dict[str, Any]],
+                stages: list[str]) -> None:
     """Stage columns in milliseconds, then the total and fps, one line per case."""
     head = ["size", "spp", "t s", "channel"] + stages + ["total", "fps"]
     body = [[f"{r['width']}x{r['height']}", str(r["samples"]), f"{r['t_s']:g}", r["channel"]]
@@ -115,9 +117,9 @@ def print_table(rows: list[dict[str, Any]], summary: list[dict[str, Any]], stage
             + [f"{r['total_ms']:.2f}", f"{1e3 / r['total_ms']:.1f}"] for r in rows]
     widths = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(head)]
     print("median milliseconds per stage")
-    print("  ".join(h.rjust(w) for h, w in zip(head, widths)))
+    print("  ".join(h.rjust(w) for h, w in zip(head, widths, strict=True)))
     for b in body:
-        print("  ".join(c.rjust(w) for c, w in zip(b, widths)))
+        print("  ".join(c.rjust(w) for c, w in zip(b, widths, strict=True)))
     print()
     print("per size and sample count, over every channel and eyepoint")
     for s in summary:
@@ -139,9 +141,10 @@ def plot(rows: list[dict[str, Any]], stages: list[str], path: Path) -> bool:
 
     panels = [(w, h, s) for (w, h) in SIZES for s in SAMPLES
               if any((r["width"], r["height"], r["samples"]) == (w, h, s) for r in rows)]
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.6), sharey=True, squeeze=False)
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.6), sharey=True,
+                             squeeze=False)
     colours = plt.get_cmap("tab10")
-    for ax, (w, h, s) in zip(axes[0], panels):
+    for ax, (w, h, s) in zip(axes[0], panels, strict=True):
         cases = [r for r in rows if (r["width"], r["height"], r["samples"]) == (w, h, s)]
         labels = [f"{r['t_s']:g} s\n{r['channel']}" for r in cases]
         bottom = np.zeros(len(cases))
@@ -152,9 +155,11 @@ def plot(rows: list[dict[str, Any]], stages: list[str], path: Path) -> bool:
         ax.set_title(f"{w} x {h}, {s} sample{'s' if s > 1 else ''}", fontsize=9)
         ax.tick_params(axis="x", labelsize=6)
     axes[0][0].set_ylabel("median time per frame, ms")
-    axes[0][-1].legend(fontsize=7, loc="upper right")
-    fig.suptitle("render_frame per stage: bundled airfield along the bundled flight, one channel", fontsize=10)
-    fig.tight_layout()
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles[::-1], labels[::-1], fontsize=7, loc="center right")  # top stage first
+    fig.suptitle("render_frame per stage: bundled airfield along the bundled flight, one channel",
+                 fontsize=10)
+    fig.tight_layout(rect=(0.0, 0.0, 0.93, 1.0))  # leave the right margin to the legend
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return True
@@ -168,7 +173,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help=f"{QUICK_REPEATS} repeats at t = 2 and 14 s: checks the bench runs; "
                              "not a measurement")
-    parser.add_argument("--out", type=Path, default=RESULTS, help=f"results folder (default {RESULTS})")
+    parser.add_argument("--out", type=Path, default=RESULTS,
+                        help=f"results folder (default {RESULTS})")
     args = parser.parse_args(argv)
     repeats = args.repeats if args.repeats is not None else (QUICK_REPEATS if args.quick else 7)
     if repeats < 1:
@@ -206,7 +212,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     report = {
         "benchmark": "channel_worker.pipeline.render.render_frame, per stage",
-        "date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+        "date": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "machine": machine(),
         "scene": {"file": bundled_scene_path().name, "features": database.feature_count,
                   "instances": int(database.instance_model.shape[0])},
@@ -228,7 +234,8 @@ def main(argv: list[str] | None = None) -> int:
     if plot(rows, stages, png_path):
         print(f"wrote {json_path} and {png_path}")
     else:
-        print(f"wrote {json_path} (matplotlib is not installed, so no figure: pip install -e '.[bench]')")
+        print(f"wrote {json_path} (no figure: matplotlib is not installed; "
+              "pip install -e '.[bench]')")
     return 0
 
 

@@ -14,10 +14,10 @@ Outline (seconds from the start; see PHASES):
   8 degree climb;
 - 9 .. 11: straight climb;
 - 11 .. 18: coordinated left turn at 30 degrees of bank, rolled in and out over 1.5 s each;
-  the heading passes through north (0 -> 359.x) at the roll-in and ends near 326;
+  the heading passes through north (0 -> 359.x) at the roll-in and ends near 324;
 - 16 .. 24: push-over into a 4 degree descent, wings level from 18 s.
 
-The eye climbs to about 70 m. The path is integrated once, at TABLE_HZ, when the flight is built;
+The eye climbs to about 67 m. The path is integrated once, at TABLE_HZ, when the flight is built;
 eyepoint_at() interpolates the table linearly (position, pitch, roll) and along the shortest arc
 (heading). Every schedule is a smootherstep ramp, so attitude and its rate never jump.
 """
@@ -85,11 +85,7 @@ class Flight:
         Raises:
             ValueError: t_s is NaN.
         """
-        t = float(t_s)
-        if math.isnan(t):
-            raise ValueError("t_s: nan is not a time")
-        t = min(max(t, 0.0), self.duration_s)
-        u = t * TABLE_HZ
+        u = self._clamped(t_s) * TABLE_HZ
         i = min(int(u), self.position.shape[0] - 2)
         f = u - i  # in [0, 1]
         x, y, z = self.position[i] + f * (self.position[i + 1] - self.position[i])
@@ -100,9 +96,19 @@ class Flight:
         return Eyepoint.of(x, y, z, _wrap_deg(h0 + f * dh), p, r)
 
     def phase_at(self, t_s: float) -> str:
-        """Name of the last phase of PHASES that has started by t_s (clamped like eyepoint_at)."""
-        t = min(max(float(t_s), 0.0), self.duration_s)
+        """Name of the last phase of PHASES that has started by t_s (clamped like eyepoint_at).
+
+        Raises:
+            ValueError: t_s is NaN.
+        """
+        t = self._clamped(t_s)
         return [name for name, start, _ in PHASES if start <= t][-1]
+
+    def _clamped(self, t_s: float) -> float:
+        t = float(t_s)
+        if math.isnan(t):
+            raise ValueError("t_s: nan is not a time")
+        return min(max(t, 0.0), self.duration_s)
 
 
 def bundled_flight() -> Flight:

@@ -128,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("demo", help="run host, three workers and the compositor on the bundled flight",
                        description="Start host, one worker per rig channel and the compositor as separate "
                                    "processes on this machine, fly the bundled flight, print the report.")
-    p.add_argument("--rate", type=float, default=30.0, help="host frame rate, Hz (default 30)")
+    p.add_argument("--rate", type=float, default=15.0, help="host frame rate, Hz (default 15)")
     p.add_argument("--duration", type=float, default=20.0, help="simulated seconds to fly (default 20)")
     p.add_argument("--width", type=int, default=None, help="override every channel's width, pixels")
     p.add_argument("--height", type=int, default=None, help="override every channel's height, pixels")

@@ -11,12 +11,12 @@ channel seams are at +-30 degrees of azimuth from the nose and whose outer edges
   z = 0.02 m; white markings (side stripes, centreline, threshold "piano keys", aiming point,
   touchdown zone) 3 cm above it, at z = 0.05 m;
 - east of it a parallel taxiway, an apron, four hangars and a terminal; the hangars cross the
-  right seam during the take-off roll, the terminal during the climb;
+  right seam during the take-off roll, the terminal as the climb ends;
 - west of it the control tower (translucent glass cab), which crosses the left seam during the
   take-off roll, a fire station (rotation) and fuel tanks (climb);
 - tree lines either side of the runway and a poplar hedge across its far end;
 - further out, a farm (crosses the left channel's outer edge in the descent), cargo sheds north
-  of the terminal (right seam in the turn, right outer edge in the descent), a factory 1.5 km
+  of the terminal (the right channel's outer edge in the descent), a factory 1.5 km
   ahead (right seam in the descent), a town 1.5 km to the west-north-west (left seam in the
   turn and the descent), a water tower, a 150 m radio mast, a power line across the extended
   centreline and hills 5-11 km away for a skyline.
@@ -37,9 +37,10 @@ import json
 import math
 import random
 import sys
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 Vec3 = tuple[float, float, float]
 
@@ -253,8 +254,9 @@ def loft(a: Sequence[Vec3], b: Sequence[Vec3], side_colours: str | Sequence[str 
     return make_part(list(a) + list(b), faces)
 
 
-def prism(base: Sequence[tuple[float, float]], z0: float, z1: float, side_colours: str | Sequence[str | None],
-          *, top: str | None = None, bottom: str | None = None, opacity: float = 1.0) -> Part:
+def prism(base: Sequence[tuple[float, float]], z0: float, z1: float,
+          side_colours: str | Sequence[str | None], *, top: str | None = None,
+          bottom: str | None = None, opacity: float = 1.0) -> Part:
     """A vertical prism over a convex base polygon (x, y counter-clockwise from above), z0 < z1."""
     return loft([(x, y, z0) for x, y in base], [(x, y, z1) for x, y in base], side_colours,
                 cap_a=bottom, cap_b=top, opacity=opacity)
@@ -295,7 +297,7 @@ def ngon(cx: float, cy: float, radius: float, n: int, *, phase_deg: float = 0.0,
 
 
 def square(half: float, z: float) -> list[Vec3]:
-    """Square of half-size `half` centred on the z axis at height z, counter-clockwise from above."""
+    """Square of half-size `half` about the z axis at height z, counter-clockwise from above."""
     return [(-half, -half, z), (half, -half, z), (half, half, z), (-half, half, z)]
 
 
@@ -323,7 +325,8 @@ def dome(rings: Sequence[Sequence[Vec3]], apex: Vec3, colours: Sequence[str]) ->
 def runway() -> list[Part]:
     """The paved runway, x -22.5..22.5, y -1000..1000, with its side stripes."""
     half_w, half_l = RUNWAY_WIDTH_M / 2.0, RUNWAY_LENGTH_M / 2.0
-    side = [(-half_w + 0.3, -half_w + 1.2, -half_l, half_l), (half_w - 1.2, half_w - 0.3, -half_l, half_l)]
+    side = [(-half_w + 0.3, -half_w + 1.2, -half_l, half_l),
+            (half_w - 1.2, half_w - 0.3, -half_l, half_l)]
     return [ground_rect(-half_w, half_w, -half_l, half_l, PAVEMENT_Z, ASPHALT),
             ground_rects(side, MARKING_Z, PAINT_WHITE)]
 
@@ -362,8 +365,10 @@ def taxiways() -> list[Part]:
     stubs = [(RUNWAY_WIDTH_M / 2.0, x_tw0, y - hw, y + hw) for y in (-950.0, 0.0, 950.0)]
     paving = [(x_tw0, x_tw1, -950.0 - hw, 950.0 + hw)] + stubs + [(x_tw1, 200.0, -510.0, -60.0)]
     lines = [(TAXIWAY_X_M - 0.15, TAXIWAY_X_M + 0.15, -950.0, 950.0)]
-    lines += [(RUNWAY_WIDTH_M / 2.0 + 5.0, TAXIWAY_X_M - 0.15, y - 0.15, y + 0.15) for y in (-950.0, 0.0, 950.0)]
-    return [ground_rects(paving, PAVEMENT_Z, CONCRETE), ground_rects(lines, MARKING_Z, PAINT_YELLOW)]
+    lines += [(RUNWAY_WIDTH_M / 2.0 + 5.0, TAXIWAY_X_M - 0.15, y - 0.15, y + 0.15)
+              for y in (-950.0, 0.0, 950.0)]
+    return [ground_rects(paving, PAVEMENT_Z, CONCRETE),
+            ground_rects(lines, MARKING_Z, PAINT_YELLOW)]
 
 
 def gable_building(width: float, depth: float, eaves: float, ridge: float, walls: str, roof: str,
@@ -481,7 +486,8 @@ def hill(seed: int, radius: float, height: float, colours: Sequence[str]) -> lis
         [(r * math.cos(a), r * math.sin(a), 0.0) for a, r in
          ((2.0 * math.pi * i / n, radius * (0.85 + 0.3 * rng.random())) for i in range(n))],
         [(r * math.cos(a), r * math.sin(a), height * (0.55 + 0.1 * rng.random())) for a, r in
-         ((2.0 * math.pi * (i + 0.5) / n, shoulder * (0.9 + 0.2 * rng.random())) for i in range(n))],
+         ((2.0 * math.pi * (i + 0.5) / n, shoulder * (0.9 + 0.2 * rng.random()))
+          for i in range(n))],
     ]
     apex = (radius * 0.1 * (rng.random() - 0.5), radius * 0.1 * (rng.random() - 0.5), height)
     return [dome(rings, apex, colours)]
@@ -494,11 +500,14 @@ def build_models() -> dict[str, list[Part]]:
         "runway_centreline": runway_centreline(),
         "runway_end_markings": runway_end_markings(),
         "taxiways": taxiways(),
-        "hangar": gable_building(40.0, 50.0, 12.0, 17.0, METAL_WALL, METAL_ROOF, door=(32.0, 10.0, DOOR)),
+        "hangar": gable_building(40.0, 50.0, 12.0, 17.0, METAL_WALL, METAL_ROOF,
+                                 door=(32.0, 10.0, DOOR)),
         "shed": gable_building(24.0, 30.0, 7.0, 9.5, "#c8b792", BRICK_ROOF, door=(8.0, 5.0, DOOR)),
         "barn": gable_building(16.0, 30.0, 6.0, 11.0, BRICK, "#4e4a46", door=(5.0, 5.0, "#5b3a2a")),
-        "terminal": flat_roof_building(100.0, 30.0, 12.0, "#d6d0c2", "#8a8f94", band=(4.0, 9.0, "#3f566c")),
-        "fire_station": flat_roof_building(40.0, 24.0, 8.0, "#d9d4c8", "#7b7f84", band=(0.0, 5.5, FIRE_RED)),
+        "terminal": flat_roof_building(100.0, 30.0, 12.0, "#d6d0c2", "#8a8f94",
+                                       band=(4.0, 9.0, "#3f566c")),
+        "fire_station": flat_roof_building(40.0, 24.0, 8.0, "#d9d4c8", "#7b7f84",
+                                           band=(0.0, 5.5, FIRE_RED)),
         "control_tower": control_tower(),
         "fuel_tank": fuel_tank(),
         "silo": silo(),
@@ -508,7 +517,8 @@ def build_models() -> dict[str, list[Part]]:
         "factory": factory(),
         "house": gable_building(10.0, 14.0, 5.0, 8.0, "#e1d6bf", "#8e3b2c"),
         "block_low": flat_roof_building(40.0, 30.0, 12.0, "#c7b9a3", "#6e6a66"),
-        "block_mid": flat_roof_building(30.0, 30.0, 24.0, "#b3aba0", "#5f6266", band=(20.0, 22.0, "#4b5b69")),
+        "block_mid": flat_roof_building(30.0, 30.0, 24.0, "#b3aba0", "#5f6266",
+                                        band=(20.0, 22.0, "#4b5b69")),
         "block_tall": flat_roof_building(20.0, 20.0, 42.0, "#9aa3ab", "#5a5e62"),
         "fir": tree("fir", 7, 3.0, 14.0),
         "oak": tree("oak", 6, 5.0, 11.0),
@@ -523,8 +533,9 @@ def build_models() -> dict[str, list[Part]]:
 HILLS_SHAPE = ((11, 1800.0, 420.0), (12, 2400.0, 600.0), (13, 1500.0, 330.0), (14, 2600.0, 650.0),
                (15, 2000.0, 480.0), (16, 1700.0, 380.0), (17, 2200.0, 540.0), (18, 1600.0, 320.0),
                (19, 2500.0, 560.0))
+# (bearing from the origin, degrees; range, metres)
 HILLS_AT = ((-125.0, 8000.0), (-95.0, 9500.0), (-65.0, 7500.0), (-38.0, 10500.0), (-12.0, 8500.0),
-            (12.0, 9000.0), (38.0, 7000.0), (62.0, 10000.0), (92.0, 8000.0))  # (bearing deg, range m)
+            (12.0, 9000.0), (38.0, 7000.0), (62.0, 10000.0), (92.0, 8000.0))
 HILL_COLOURS = (("#6f8660", "#7d9169"), ("#728a6d", "#84977b"), ("#6a7f66", "#7a8d74"))
 
 
@@ -538,20 +549,23 @@ def build_instances() -> list[Instance]:
         Instance("runway", (0.0, 0.0, 0.0), "runway 36/18"),
         Instance("runway_centreline", (0.0, 0.0, 0.0), "runway centreline"),
         Instance("runway_end_markings", (0.0, -1000.0, 0.0), "runway 36 threshold"),
-        Instance("runway_end_markings", (0.0, 1000.0, 0.0), "runway 18 threshold", (180.0, 0.0, 0.0)),
+        Instance("runway_end_markings", (0.0, 1000.0, 0.0), "runway 18 threshold",
+                 (180.0, 0.0, 0.0)),
         Instance("taxiways", (0.0, 0.0, 0.0), "taxiway A and apron"),
     ]
     # East side; building fronts face west, towards the runway (heading 270).
     west = (270.0, 0.0, 0.0)
     for k, y in enumerate((-480.0, -420.0, -360.0, -300.0)):  # right seam, t = 0..8 s
         out.append(Instance("hangar", (225.0, y, 0.0), f"hangar {k + 1}", west))
-    out.append(Instance("terminal", (215.0, -120.0, 0.0), "terminal", west))  # right seam in the climb
-    for k, y in enumerate((130.0, 170.0, 210.0)):  # right seam in the turn, right edge in the descent
+    # The terminal: right seam as the climb ends. Cargo sheds: the right outer edge in the descent.
+    out.append(Instance("terminal", (215.0, -120.0, 0.0), "terminal", west))
+    for k, y in enumerate((130.0, 170.0, 210.0)):
         out.append(Instance("shed", (215.0, y, 0.0), f"cargo shed {k + 1}", west))
     # West side; fronts face east (heading 90).
     east = (90.0, 0.0, 0.0)
-    out.append(Instance("control_tower", (-140.0, -600.0, 0.0), "control tower", east))  # left seam, t ~ 3 s
-    out.append(Instance("fire_station", (-150.0, -420.0, 0.0), "fire station", east))  # left seam, rotation
+    # Tower: left seam at t ~ 2-3 s; fire station: left seam in the rotation.
+    out.append(Instance("control_tower", (-140.0, -600.0, 0.0), "control tower", east))
+    out.append(Instance("fire_station", (-150.0, -420.0, 0.0), "fire station", east))
     for k, x in enumerate((-190.0, -168.0, -146.0)):  # left seam in the climb
         out.append(Instance("fuel_tank", (x, -250.0, 0.0), f"fuel tank {k + 1}"))
     out += [  # left outer edge in the descent
@@ -560,7 +574,8 @@ def build_instances() -> list[Instance]:
     ]
     out += _trees()
     # Further out.
-    out.append(Instance("factory", (-380.0, 1450.0, 0.0), "factory", (180.0, 0.0, 0.0)))  # right seam, descent
+    # The factory crosses the right seam in the descent.
+    out.append(Instance("factory", (-380.0, 1450.0, 0.0), "factory", (180.0, 0.0, 0.0)))
     out.append(Instance("water_tower", (-700.0, 900.0, 0.0), "water tower"))
     out.append(Instance("radio_mast", (1200.0, 2200.0, 0.0), "radio mast"))
     for k, x in enumerate(range(-2400, 2401, 400)):  # a power line across the extended centreline
@@ -568,8 +583,8 @@ def build_instances() -> list[Instance]:
     out += _town()
     for k, (bearing, rng) in enumerate(HILLS_AT):
         b = math.radians(bearing)
-        out.append(Instance(f"hill_{k + 1}", (_round(rng * math.sin(b)), _round(rng * math.cos(b)), 0.0),
-                            f"hill {k + 1}"))
+        position = (_round(rng * math.sin(b)), _round(rng * math.cos(b)), 0.0)
+        out.append(Instance(f"hill_{k + 1}", position, f"hill {k + 1}"))
     return out
 
 
@@ -586,16 +601,18 @@ def _trees() -> list[Instance]:
                             (_round(rng.uniform(0.0, 360.0)), 0.0, 0.0)))
 
     for k, y in enumerate(range(-1040, 1041, 40)):
-        plant("fir" if k % 3 else "oak", -300.0 + rng.uniform(-4.0, 4.0), y + rng.uniform(-6.0, 6.0),
-              f"west tree line {k + 1}")
+        plant("fir" if k % 3 else "oak", -300.0 + rng.uniform(-4.0, 4.0),
+              y + rng.uniform(-6.0, 6.0), f"west tree line {k + 1}")
     for k, y in enumerate(range(-1040, 681, 40)):
-        plant("oak" if k % 2 else "fir", 330.0 + rng.uniform(-4.0, 4.0), y + rng.uniform(-6.0, 6.0),
-              f"east tree line {k + 1}")
+        plant("oak" if k % 2 else "fir", 330.0 + rng.uniform(-4.0, 4.0),
+              y + rng.uniform(-6.0, 6.0), f"east tree line {k + 1}")
     for k, x in enumerate(range(-700, 701, 40)):
-        plant("poplar", x + rng.uniform(-3.0, 3.0), 1250.0 + rng.uniform(-2.0, 2.0), f"hedge {k + 1}")
+        plant("poplar", x + rng.uniform(-3.0, 3.0), 1250.0 + rng.uniform(-2.0, 2.0),
+              f"hedge {k + 1}")
     for k in range(14):
         r, a = 150.0 * math.sqrt(rng.random()), rng.uniform(0.0, 2.0 * math.pi)
-        plant("oak" if k % 2 else "fir", -700.0 + r * math.cos(a), 420.0 + r * math.sin(a), f"wood {k + 1}")
+        plant("oak" if k % 2 else "fir", -700.0 + r * math.cos(a), 420.0 + r * math.sin(a),
+              f"wood {k + 1}")
     return out
 
 
@@ -673,13 +690,18 @@ def _dump(value: Any, indent: int) -> str:
 
 
 def _is_leafy(value: Any) -> bool:
-    """Whether a value goes on one line: a scalar, a list of scalars, or an object of those."""
+    """Whether a value goes on one line: a scalar, a list of scalars, or a small object of those
+    (a face, an instance, the lighting: at most _LEAF_KEYS keys)."""
     def scalar_or_flat(v: Any) -> bool:
         return not isinstance(v, (dict, list)) or (
             isinstance(v, list) and all(not isinstance(x, (dict, list)) for x in v))
     if isinstance(value, dict):
-        return all(scalar_or_flat(v) for v in value.values()) and len(value) <= 4
+        return len(value) <= _LEAF_KEYS and all(scalar_or_flat(v) for v in value.values())
     return scalar_or_flat(value)
+
+
+#: An instance has at most four keys (model, position, hpr, name); larger objects are spread out.
+_LEAF_KEYS = 4
 
 
 def statistics(doc: dict[str, Any]) -> dict[str, int]:

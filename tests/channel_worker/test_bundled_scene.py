@@ -39,8 +39,9 @@ def _newell(points: np.ndarray) -> np.ndarray:
 
 def test_checked_in_json_is_what_the_generator_writes():
     assert build_airfield.OUTPUT == bundled_scene_path()
-    assert bundled_scene_path().read_text(encoding="utf-8") == build_airfield.render_json(
-        build_airfield.build_scene()), "airfield.json is stale: python -m channel_worker.data.build_airfield"
+    expected = build_airfield.render_json(build_airfield.build_scene())
+    assert bundled_scene_path().read_text(encoding="utf-8") == expected, (
+        "airfield.json is stale: run python -m channel_worker.data.build_airfield")
 
 
 def test_generator_check_mode(tmp_path, capsys):
@@ -81,7 +82,8 @@ def test_solid_parts_face_away_from_their_centroid_and_decals_face_their_way():
                     assert n @ (pts.mean(axis=0) - centroid) > 0.0, (name, k, "faces inwards")
                     solids += 1
                 else:
-                    np.testing.assert_allclose(n, part.facing, atol=1e-9, err_msg=f"{name} face {k}")
+                    np.testing.assert_allclose(n, part.facing, atol=1e-9,
+                                               err_msg=f"{name} face {k}")
                     decals += 1
     assert solids > 200 and decals > 50
 
@@ -90,7 +92,8 @@ def test_file_models_are_their_parts_in_order(doc):
     for name, parts in build_airfield.build_models().items():
         model = doc["models"][name]
         assert len(model["vertices"]) == sum(len(p.vertices) for p in parts), name
-        assert [f["colour"] for f in model["faces"]] == [f.colour for p in parts for f in p.faces], name
+        colours = [f.colour for p in parts for f in p.faces]
+        assert [f["colour"] for f in model["faces"]] == colours, name
 
 
 def test_ground_features_lie_where_the_brief_puts_them(doc):
@@ -108,12 +111,12 @@ def test_geometry_errors_are_caught_when_parts_are_made():
     with pytest.raises(build_airfield.GeometryError, match="is not"):
         build_airfield.make_part(square, [down], facing=(0.0, 0.0, 1.0))
     with pytest.raises(build_airfield.GeometryError, match="not strictly convex"):
-        build_airfield.make_part(square + [(0.5, 0.2, 0.0)], [build_airfield.Face((0, 1, 2, 4, 3), "#ffffff")],
-                                 facing=(0.0, 0.0, 1.0))
+        dented = build_airfield.Face((0, 1, 2, 4, 3), "#ffffff")
+        build_airfield.make_part(square + [(0.5, 0.2, 0.0)], [dented], facing=(0.0, 0.0, 1.0))
     # A box whose roof is wound clockwise from above points into the solid.
     walls = build_airfield.box(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, "#ffffff", top="#ffffff")
     roof = walls.faces[-1]
-    flipped = list(walls.faces[:-1]) + [build_airfield.Face(tuple(reversed(roof.indices)), roof.colour)]
+    flipped = [*walls.faces[:-1], build_airfield.Face(tuple(reversed(roof.indices)), roof.colour)]
     with pytest.raises(build_airfield.GeometryError, match="points into the solid"):
         build_airfield.make_part(walls.vertices, flipped)
 
@@ -126,7 +129,8 @@ def test_loads_with_a_sensible_size(doc, database):
     assert 300 <= database.feature_count <= 2000
     assert database.instance_model.shape[0] == stats["instances"]
     assert len(set(database.instance_names)) == len(database.instance_names)  # names are unique
-    glass = [op for m in database.models if m.name == "control_tower" for op in m.opacity if op < 1.0]
+    tower = next(m for m in database.models if m.name == "control_tower")
+    glass = [op for op in tower.opacity if op < 1.0]
     assert glass and all(op == pytest.approx(0.4) for op in glass)
 
 
@@ -190,4 +194,5 @@ def _cut_by(database, t_s: float, edge_deg: float) -> set[str]:
     (20.0, 90.0, "cargo shed 1"),
 ])
 def test_the_flight_carries_objects_across_the_seams(database, t_s, edge_deg, name):
-    assert name in _cut_by(database, t_s, edge_deg), f"{FLIGHT.phase_at(t_s)}: {sorted(_cut_by(database, t_s, edge_deg))}"
+    cut = _cut_by(database, t_s, edge_deg)
+    assert name in cut, f"{FLIGHT.phase_at(t_s)}: the edge cuts {sorted(cut)}"

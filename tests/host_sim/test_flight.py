@@ -37,7 +37,8 @@ def test_duration_covers_a_20_s_demo_with_margin():
 def test_deterministic():
     other = bundled_flight()
     for a, b in zip((FLIGHT.position, FLIGHT.heading_deg, FLIGHT.pitch_deg, FLIGHT.roll_deg),
-                    (other.position, other.heading_deg, other.pitch_deg, other.roll_deg)):
+                    (other.position, other.heading_deg, other.pitch_deg, other.roll_deg),
+                    strict=True):
         assert np.array_equal(a, b)
     assert [_fields(t).tolist() for t in (0.0, 3.3, 12.345, 23.9)] == [
         np.array([*e.position, e.heading_deg, e.pitch_deg, e.roll_deg]).tolist()
@@ -59,6 +60,8 @@ def test_finite_for_any_time(t):
 def test_nan_time_is_an_error():
     with pytest.raises(ValueError, match="t_s"):
         FLIGHT.eyepoint_at(float("nan"))
+    with pytest.raises(ValueError, match="t_s"):
+        FLIGHT.phase_at(float("nan"))
 
 
 def test_clamps_time_outside_the_script():
