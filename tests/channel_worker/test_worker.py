@@ -1,0 +1,71 @@
+"""The worker renders the newest frame only and counts what it skipped; bad frames are refused."""
+
+import numpy as np
+
+from channel_worker.pipeline.types import ChannelSpec
+from channel_worker.worker import ChannelWorker, LatestFrame, encode_rgb_f16
+from ig.v1 import frame_pb2
+
+
+def frame(n, x=0.0):
+    return frame_pb2.Frame(frame_number=n, eyepoint=frame_pb2.Eyepoint(x=x, y=-900.0, z=3.0), run_id="r")
+
+
+def test_mailbox_keeps_only_the_newest_frame():
+    box = LatestFrame()
+    for n in range(5):
+        box.put(frame(n))
+    assert box.take(0.01).frame_number == 4
+    assert box.take(0.01) is None
+    box.end()
+    assert box.ended
+
+
+class FakeStub:
+    def __init__(self):
+        self.calls = []
+
+    def SubmitChannelImage(self, request, timeout):
+        assert timeout > 0
+        self.calls.append(("submit", request.frame_number, request.frames_skipped))
+
+    def AckFrame(self, request, timeout):
+        assert timeout > 0
+        self.calls.append(("ack", request.frame_number, request.ok, request.error))
+
+
+def worker(make_scene, box_model_factory):
+    db = make_scene({"b": box_model_factory(1, 1, 1)}, [{"model": "b", "position": [0, 0, 0]}])
+    w = ChannelWorker(db, ChannelSpec.symmetric("centre", 16, 12, 60.0), host_address="127.0.0.1:1",
+                      compositor_address="127.0.0.1:1", samples=1)
+    stub = FakeStub()
+    w.host_stub = w.compositor_stub = stub
+    return w, stub
+
+
+def test_skipped_frames_are_counted_and_reported(make_scene, box_model_factory):
+    w, stub = worker(make_scene, box_model_factory)
+    for n in (0, 1, 4, 5, 9):
+        w._handle(frame(n))
+    assert w.counters.frames_skipped == 2 + 3
+    assert w.counters.frames_rendered == 5
+    submits = [c for c in stub.calls if c[0] == "submit"]
+    assert [c[1] for c in submits] == [0, 1, 4, 5, 9]
+    assert submits[-1][2] == 5
+
+
+def test_nan_eyepoint_is_refused_acked_as_failed_and_the_worker_goes_on(make_scene, box_model_factory):
+    w, stub = worker(make_scene, box_model_factory)
+    w._handle(frame(0, x=float("nan")))
+    w._handle(frame(1))
+    assert w.counters.frames_refused == 1
+    assert stub.calls[0][0] == "ack" and stub.calls[0][2] is False
+    assert "eyepoint.position[0]: nan is not finite" in stub.calls[0][3]
+    assert ("submit", 1, 0) in stub.calls
+
+
+def test_pixels_are_little_endian_half_rows_top_first():
+    rgb = np.arange(2 * 3 * 3, dtype=np.float32).reshape(2, 3, 3)
+    raw = encode_rgb_f16(rgb)
+    assert len(raw) == 2 * 3 * 3 * 2
+    np.testing.assert_array_equal(np.frombuffer(raw, "<f2").reshape(2, 3, 3), rgb)
