@@ -149,15 +149,21 @@ def run_demo(args) -> int:
         procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(args.rate),
                              "--duration", str(args.duration)])
         last = ""
+        # On a terminal the progress line is redrawn every second; in a log, a line every 10 s.
+        tty = sys.stdout.isatty()
+        next_line = 0.0
         while compositor.poll() is None:
             time.sleep(1.0)
             doc = _report(rig.compositor_address)
             if doc is not None:
-                line = (f"\r  frames complete {doc['frames_complete']:5d} / published {doc['frames_published']:5d}"
+                line = (f"  frames complete {doc['frames_complete']:5d} / published {doc['frames_published']:5d}"
                         f" / run {expected}")
-                if line != last:
-                    print(line, end="", flush=True)
-                    last = line
+                if tty and line != last:
+                    print("\r" + line, end="", flush=True)
+                elif not tty and line != last and time.monotonic() >= next_line:
+                    print(line, flush=True)
+                    next_line = time.monotonic() + 10.0
+                last = line
             dead = [n for n, p in procs.procs.items() if p.poll() not in (None, 0) and n != "compositor"]
             if dead and len(dead) == len(procs.procs) - 1:
                 print(f"\nig demo: every other process has exited ({', '.join(dead)}); see the logs",

@@ -160,3 +160,15 @@ def test_pipeline_is_watertight_inside_a_closed_room(dx, dy, dz, h, p, r, far_of
     screen = project(polys, view)
     counts = hit_counts(screen, 40, 30, sample_pattern("rgss4"))
     assert (counts == 1).all(), f"{(counts == 0).sum()} cracks, {(counts > 1).sum()} double hits"
+
+
+def test_pixel_centres_sit_at_half_integers_from_the_top_left():
+    offsets = sample_pattern("centre")
+    np.testing.assert_array_equal(offsets, [[0.5, 0.5]])
+    covers = hit_counts(screen_polys([[(0, 0), (0.5625, 0), (0.5625, 0.5625), (0, 0.5625)]]), 3, 2, offsets)
+    assert covers[0, 0, 0] == 1 and covers.sum() == 1  # pixel (0, 0) is the top-left one
+    misses = hit_counts(screen_polys([[(0, 0), (0.4375, 0), (0.4375, 0.4375), (0, 0.4375)]]), 3, 2, offsets)
+    assert misses.sum() == 0
+    # a quad over x in [1.4375, 3), y in [1.4375, 2) covers the pixels whose centres (x + .5, y + .5) it holds
+    quad = hit_counts(screen_polys([[(1.4375, 1.4375), (3, 1.4375), (3, 2), (1.4375, 2)]]), 3, 2, offsets)
+    assert quad[..., 0].tolist() == [[0, 0, 0], [0, 1, 1]]
