@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import _ranges
+from .geometry import index_ranges
 from .types import Polygons
 
 
@@ -30,7 +30,7 @@ def select(polys: Polygons, keep: np.ndarray) -> Polygons:
     idx = np.nonzero(keep)[0]
     counts = np.diff(polys.start)[idx]
     start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    vidx = _ranges(polys.start[idx], counts)
+    vidx = index_ranges(polys.start[idx], counts)
     return type(polys)(
         verts=polys.verts[vidx],
         start=start,

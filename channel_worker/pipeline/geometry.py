@@ -100,8 +100,8 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
     faces = table.face_count[model]
     corner_inst = np.repeat(np.arange(n), corners)
     face_inst = np.repeat(np.arange(n), faces)
-    corner_rows = _ranges(table.corner_base[model], corners)
-    face_rows = _ranges(table.face_base[model], faces)
+    corner_rows = index_ranges(table.corner_base[model], corners)
+    face_rows = index_ranges(table.face_base[model], faces)
 
     to_eye_rot = view.world_to_eye @ draws.rotation  # (n, 3, 3) model -> eye
     rel = (draws.position - view.eye) @ view.world_to_eye.T  # instance origins, eye frame
@@ -127,7 +127,7 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
     )
 
 
-def _ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+def index_ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
     """Concatenation of arange(s, s + c) for each (s, c), without a Python loop."""
     total = int(counts.sum())
     base = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
