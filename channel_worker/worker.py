@@ -3,41 +3,65 @@
 A receiver thread drains the host's stream into a one-frame slot, so the render loop always
 takes the newest frame: a worker never renders an old frame late. Frames that were replaced in
 the slot before they were rendered are counted as skipped (none in synchronous mode, where the
-host waits for every channel).
+host waits for every channel; see docs/frame-lock.md).
+
+The worker also runs a small gRPC server at its rig address: the standard health service and
+ChannelWorkerService.GetWorkerStatus (its counters).
 """
 
 from __future__ import annotations
 
+import enum
 import logging
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import grpc
 import numpy as np
 
 from host_sim.publisher import eyepoint_of
-from ig.v1 import compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc
-from services.grpc_util import RPC_DEADLINE_S, add_health, bind, make_channel, make_server, set_not_serving
+from ig.v1 import (compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc, worker_pb2,
+                   worker_pb2_grpc)
+from services.grpc_util import (RPC_DEADLINE_S, STREAM_DEADLINE_S, add_health, bind, make_channel, make_server,
+                                set_not_serving)
 
 from .pipeline.render import render_frame
 from .pipeline.types import ChannelSpec, Database, Eyepoint
 
 log = logging.getLogger("ig.worker")
-SERVICE = "ig.v1.ChannelWorker"
+SERVICE = "ig.v1.ChannelWorkerService"
+
+#: Pause before subscribing again after a stream ended without finishing a run, seconds.
+_RESUBSCRIBE_S = 1.0
 
 
 @dataclass
 class WorkerCounters:
+    """What the worker has done since it started (mirrors GetWorkerStatusResponse)."""
+
+    frames_handled: int = 0
     frames_rendered: int = 0
     frames_skipped: int = 0
     frames_refused: int = 0
     submit_failures: int = 0
     ack_failures: int = 0
+    last_frame_number: int = 0
+    run_id: str = ""
+    last_error: str = ""
+
+
+class StreamEnd(enum.Enum):
+    """How one subscription to the host ended."""
+
+    RUN_OVER = "run over"  # the host closed the stream: its run has ended
+    REFUSED = "refused"  # the host refused the channel name: the rig files disagree
+    LOST = "lost"  # the host is gone, the deadline passed, or the channel is still taken
+    STOPPED = "stopped"  # this worker is shutting down
 
 
 def encode_rgb_f16(rgb: np.ndarray) -> bytes:
-    """PIXEL_FORMAT_RGB_F16: linear RGB as little-endian half floats, top row first."""
+    """PIXEL_FORMAT_RGB_F16: linear RGB (H, W, 3) as little-endian half floats, top row first."""
     return np.ascontiguousarray(rgb, dtype="<f2").tobytes()
 
 
@@ -60,6 +84,7 @@ class LatestFrame:
             self._cond.notify_all()
 
     def take(self, timeout_s: float) -> frame_pb2.Frame | None:
+        """The newest frame not taken yet; None if none came within timeout_s seconds."""
         with self._cond:
             self._cond.wait_for(lambda: self._frame is not None or self._ended, timeout=timeout_s)
             frame, self._frame = self._frame, None
@@ -67,6 +92,7 @@ class LatestFrame:
 
     @property
     def ended(self) -> bool:
+        """True once the stream has ended and its last frame was taken."""
         with self._cond:
             return self._ended and self._frame is None
 
@@ -77,9 +103,10 @@ class ChannelWorker:
     Args:
         database: the loaded scene.
         channel: this channel's view.
-        host_address, compositor_address: host:port of the services.
+        host_address: host:port of HostService.
+        compositor_address: host:port of CompositorService.
         samples: sample pattern name or count.
-        once: stop when the host's run ends instead of subscribing again.
+        once: stop when the host's run ends instead of subscribing again for the next run.
     """
 
     def __init__(self, database: Database, channel: ChannelSpec, *, host_address: str,
@@ -89,70 +116,129 @@ class ChannelWorker:
         self.samples = samples
         self.once = once
         self.counters = WorkerCounters()
+        #: Why the host refused this worker (its channel is not in the host's rig), else "".
+        self.refused = ""
+        self._lock = threading.Lock()
+        self._subscribed = False
+        self._stream: grpc.Future | None = None
         self._host = make_channel(host_address)
         self._compositor = make_channel(compositor_address)
         self.host_stub = host_pb2_grpc.HostServiceStub(self._host)
         self.compositor_stub = compositor_pb2_grpc.CompositorServiceStub(self._compositor)
-        self._last_rendered = -1
+        self._last_taken = -1
 
     def warm_up(self) -> None:
-        """Compile the numba kernels before the first real frame (several seconds the first time)."""
+        """Compile the numba kernels before the first real frame (several seconds the first time).
+
+        Done before subscribing, so the first frames of the run are not held up by the compiler.
+        """
         tiny = ChannelSpec("warm-up", 8, 6, self.channel.left_deg, self.channel.right_deg,
                            self.channel.bottom_deg, self.channel.top_deg)
         render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), samples=self.samples)
 
-    def run(self, stop: threading.Event) -> None:
-        """Subscribe and render until the run ends (once) or stop is set."""
-        while not stop.is_set():
-            mailbox = LatestFrame()
-            receiver = threading.Thread(target=self._receive, args=(mailbox, stop), daemon=True)
-            receiver.start()
-            got_any = False
-            while not stop.is_set():
-                frame = mailbox.take(0.5)
-                if frame is None:
-                    if mailbox.ended:
-                        break
-                    continue
-                got_any = True
-                self._handle(frame)
-            receiver.join(timeout=2.0)
-            if self.once and got_any:
-                break
-            stop.wait(1.0)  # host not there yet, or its run ended: subscribe again shortly
-        self._host.close()
-        self._compositor.close()
+    def status(self) -> worker_pb2.GetWorkerStatusResponse:
+        """A consistent copy of the counters."""
+        with self._lock:
+            return worker_pb2.GetWorkerStatusResponse(channel_name=self.channel.name, subscribed=self._subscribed,
+                                                      **asdict(self.counters))
 
-    def _receive(self, mailbox: LatestFrame, stop: threading.Event) -> None:
+    def run(self, stop: threading.Event) -> None:
+        """Subscribe and render until the run ends (with once), the host refuses us, or stop is set."""
+        try:
+            while not stop.is_set():
+                mailbox = LatestFrame()
+                outcome: list[StreamEnd] = []
+                receiver = threading.Thread(target=self._receive, args=(mailbox, stop, outcome),
+                                            name="frame-receiver", daemon=True)
+                receiver.start()
+                while not (stop.is_set() or mailbox.ended):
+                    frame = mailbox.take(0.5)
+                    if frame is not None:
+                        self._handle(frame)
+                self._cancel_stream()
+                receiver.join()
+                end = outcome[0] if outcome else StreamEnd.STOPPED
+                if end is StreamEnd.REFUSED or (end is StreamEnd.RUN_OVER and self.once):
+                    break
+                stop.wait(_RESUBSCRIBE_S)
+        finally:
+            self._host.close()
+            self._compositor.close()
+
+    def _cancel_stream(self) -> None:
+        with self._lock:
+            stream = self._stream
+        if stream is not None:
+            stream.cancel()
+
+    def _receive(self, mailbox: LatestFrame, stop: threading.Event, outcome: list[StreamEnd]) -> None:
+        """Receiver thread: drain one subscription into the mailbox; record how it ended."""
         request = host_pb2.SubscribeFramesRequest(subscriber=f"worker-{self.channel.name}",
                                                   channel_name=self.channel.name)
+        end = StreamEnd.LOST
         try:
-            stream = self.host_stub.SubscribeFrames(request, wait_for_ready=True, timeout=None)
+            # wait_for_ready: the host may start after the workers (any start order works).
+            stream = self.host_stub.SubscribeFrames(request, wait_for_ready=True, timeout=STREAM_DEADLINE_S)
+            with self._lock:
+                self._stream = stream
+                self._subscribed = True
+            if stop.is_set():  # SIGTERM arrived before the stream was registered for cancelling
+                stream.cancel()
             for response in stream:
                 mailbox.put(response.frame)
-                if stop.is_set():
-                    stream.cancel()
-                    break
+            end = StreamEnd.RUN_OVER
         except grpc.RpcError as exc:
-            if exc.code() == grpc.StatusCode.INVALID_ARGUMENT:
-                log.error("host refused the subscription: %s", exc.details())
-                stop.set()
-            elif exc.code() != grpc.StatusCode.CANCELLED:
-                log.warning("host stream ended: %s %s", exc.code().name, exc.details())
+            code = exc.code()
+            if code == grpc.StatusCode.INVALID_ARGUMENT:
+                end = StreamEnd.REFUSED
+                self.refused = exc.details() or code.name
+                self._note_error(f"host refused the subscription: {self.refused}")
+                log.error("host refused the subscription: %s", self.refused)
+            elif code == grpc.StatusCode.CANCELLED and stop.is_set():
+                end = StreamEnd.STOPPED
+            else:
+                # UNAVAILABLE (host restarting), DEADLINE_EXCEEDED (a very long session),
+                # ALREADY_EXISTS (the host has not yet noticed our previous stream died): retry.
+                log.warning("host stream ended: %s %s; subscribing again", code.name, exc.details())
         finally:
+            with self._lock:
+                self._stream = None
+                self._subscribed = False
+            outcome.append(end)
             mailbox.end()
 
+    def _note_error(self, message: str) -> None:
+        with self._lock:
+            self.counters.last_error = message
+
     def _handle(self, frame: frame_pb2.Frame) -> None:
+        """Render one frame, submit it to the compositor and acknowledge it to the host.
+
+        Never raises for a bad frame or an unreachable service: those are counted and logged,
+        and the frame is acknowledged with the reason, so the host is not held up.
+        """
         number = frame.frame_number
-        if self._last_rendered >= 0 and number > self._last_rendered + 1:
-            self.counters.frames_skipped += number - self._last_rendered - 1
-        self._last_rendered = number
+        with self._lock:
+            c = self.counters
+            if frame.run_id != c.run_id:
+                self._last_taken = -1  # frame numbers start again with each run
+            if self._last_taken >= 0 and number > self._last_taken + 1:
+                c.frames_skipped += number - self._last_taken - 1
+            self._last_taken = number
+            c.run_id = frame.run_id
+            c.last_frame_number = number
+            c.frames_handled += 1
+            skipped = c.frames_skipped
         t0 = time.perf_counter()
         try:
             image = render_frame(self.database, self.channel, eyepoint_of(frame.eyepoint), samples=self.samples)
         except ValueError as exc:
-            self.counters.frames_refused += 1
-            log.error("frame %d refused: %s", number, exc)
+            # The message names the field and value, e.g. "eyepoint.position[2]: nan is not finite".
+            error = f"frame {number} refused: {exc}"
+            with self._lock:
+                self.counters.frames_refused += 1
+                self.counters.last_error = error
+            log.error("%s", error)
             self._ack(number, ok=False, error=str(exc))
             return
         render_time = time.perf_counter() - t0
@@ -161,38 +247,60 @@ class ChannelWorker:
             height=self.channel.height, pixel_format=compositor_pb2.PIXEL_FORMAT_RGB_F16,
             pixels=encode_rgb_f16(image.rgb), eyepoint=frame.eyepoint, render_time_s=render_time,
             control_sample_time_unix_s=frame.control_sample_time_unix_s,
-            frames_skipped=self.counters.frames_skipped, run_id=frame.run_id)
+            frames_skipped=skipped, run_id=frame.run_id)
         ok, error = True, ""
         try:
             self.compositor_stub.SubmitChannelImage(request, timeout=RPC_DEADLINE_S)
-            self.counters.frames_rendered += 1
+            with self._lock:
+                self.counters.frames_rendered += 1
         except grpc.RpcError as exc:
-            self.counters.submit_failures += 1
             ok, error = False, f"submit to compositor failed: {exc.code().name} {exc.details()}"
+            with self._lock:
+                self.counters.submit_failures += 1
+                self.counters.last_error = f"frame {number}: {error}"
             log.error("frame %d: %s", number, error)
         self._ack(number, ok=ok, error=error)
 
     def _ack(self, number: int, *, ok: bool, error: str) -> None:
+        request = host_pb2.AckFrameRequest(channel_name=self.channel.name, frame_number=number, ok=ok, error=error)
         try:
-            self.host_stub.AckFrame(host_pb2.AckFrameRequest(channel_name=self.channel.name, frame_number=number,
-                                                             ok=ok, error=error), timeout=RPC_DEADLINE_S)
+            self.host_stub.AckFrame(request, timeout=RPC_DEADLINE_S)
         except grpc.RpcError as exc:
-            self.counters.ack_failures += 1
+            with self._lock:
+                self.counters.ack_failures += 1
+                self.counters.last_error = f"frame {number}: acknowledgement failed: {exc.code().name}"
             log.warning("frame %d: acknowledgement to host failed: %s", number, exc.code().name)
 
 
+class WorkerStatusServicer(worker_pb2_grpc.ChannelWorkerServiceServicer):
+    """Thin servicer: the worker's counters."""
+
+    def __init__(self, worker: ChannelWorker) -> None:
+        self.worker = worker
+
+    def GetWorkerStatus(self, request, context):
+        return self.worker.status()
+
+
 def serve_worker(worker: ChannelWorker, address: str, stop: threading.Event) -> None:
-    """Serve the worker's health on address while it renders; blocks until it is done."""
+    """Serve the worker's health and status on address while it renders; blocks until it is done.
+
+    Raises:
+        OSError: address cannot be bound.
+    """
     server = make_server(max_workers=4)
+    worker_pb2_grpc.add_ChannelWorkerServiceServicer_to_server(WorkerStatusServicer(worker), server)
     health = add_health(server, [SERVICE])
     bind(server, address)
     server.start()
-    log.info("worker %s: health on %s", worker.channel.name, address)
+    log.info("worker %s: health and status on %s", worker.channel.name, address)
     try:
         worker.run(stop)
     finally:
+        # NOT_SERVING first, so health checkers see the worker leave before it stops answering.
         set_not_serving(health, [SERVICE])
         server.stop(grace=0.5).wait()
         c = worker.counters
-        log.info("worker %s done: %d rendered, %d skipped, %d refused, %d submit failures",
-                 worker.channel.name, c.frames_rendered, c.frames_skipped, c.frames_refused, c.submit_failures)
+        log.info("worker %s done: %d rendered, %d skipped, %d refused, %d submit failures, %d ack failures",
+                 worker.channel.name, c.frames_rendered, c.frames_skipped, c.frames_refused, c.submit_failures,
+                 c.ack_failures)

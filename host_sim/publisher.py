@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import collections
 import logging
+import math
 import threading
 import time
 import uuid
@@ -26,9 +27,17 @@ log = logging.getLogger("ig.host")
 #: mode a channel never has more than one; the bound protects the host from a stalled observer.
 QUEUE_DEPTH = 8
 
+#: Longest a wait of the publisher goes without looking at the stop event, seconds: SIGTERM
+#: must not wait out a start or sync timeout.
+_STOP_POLL_S = 0.1
+
 
 class UnknownChannel(ValueError):
     """A subscription or acknowledgement named a channel that is not in the rig."""
+
+
+class ChannelTaken(ValueError):
+    """A second subscriber asked for a channel that already has one (two workers for one window)."""
 
 
 class Subscription:
@@ -81,29 +90,43 @@ class HostStatus:
     subscribers: list[str] = field(default_factory=list)
     finished: bool = False
     last_error: str = ""
+    channel_absent: dict[str, int] = field(default_factory=dict)
 
 
 class FramePublisher:
     """Publishes frames of an eyepoint source at a fixed rate, frame-locked to the channels.
 
+    Tick k of the run has simulation time k / rate_hz seconds. Frame numbers count published
+    frames, so they equal the tick unless an eyepoint was refused: a refused tick publishes
+    nothing and leaves no gap, so that a gap seen by a worker always means a skipped frame.
+
     Args:
         source: eyepoint at a simulation time in seconds.
         channels: names of the rig's channels; each must acknowledge every frame.
-        rate_hz: publication rate; simulation time of tick k is k / rate_hz.
+        rate_hz: publication rate, Hz.
         duration_s: simulated seconds to run.
-        sync_timeout_s: longest wait for the acknowledgements of one frame.
+        sync_timeout_s: longest wait for the acknowledgements of one frame, seconds.
         observers: observers (e.g. the compositor) to wait for before the first frame.
-        start_timeout_s: longest wait for all channels and observers to subscribe.
+        start_timeout_s: longest wait for all channels and observers to subscribe, seconds.
+        clock: wall clock, UNIX seconds (time stamps in the frames).
+        run_id: identity of the run; a random one by default.
     """
 
     def __init__(self, *, source: Callable[[float], Eyepoint], channels: Sequence[str],
                  rate_hz: float = 60.0, duration_s: float = 20.0, sync_timeout_s: float = 10.0,
                  observers: int = 0, start_timeout_s: float = 120.0,
                  clock: Callable[[], float] = time.time, run_id: str | None = None) -> None:
-        if not rate_hz > 0:
-            raise ValueError(f"rate_hz: {rate_hz} must be > 0")
-        if not duration_s >= 0:
-            raise ValueError(f"duration_s: {duration_s} must be >= 0")
+        # `not x > 0` rather than `x <= 0` so that NaN is refused too.
+        if not (rate_hz > 0 and math.isfinite(rate_hz)):
+            raise ValueError(f"rate_hz: {rate_hz} must be a finite number > 0")
+        if not (duration_s >= 0 and math.isfinite(duration_s)):
+            raise ValueError(f"duration_s: {duration_s} must be a finite number >= 0")
+        if not sync_timeout_s > 0:
+            raise ValueError(f"sync_timeout_s: {sync_timeout_s} must be > 0")
+        if not start_timeout_s >= 0:
+            raise ValueError(f"start_timeout_s: {start_timeout_s} must be >= 0")
+        if observers < 0:
+            raise ValueError(f"observers: {observers} must be >= 0")
         self.source = source
         self.channels = tuple(channels)
         self.rate_hz = float(rate_hz)
@@ -115,6 +138,7 @@ class FramePublisher:
         self.status = HostStatus(run_id=run_id or uuid.uuid4().hex[:12])
         self.status.ack_timeouts = {c: 0 for c in self.channels}
         self.status.ack_failures = {c: 0 for c in self.channels}
+        self.status.channel_absent = {c: 0 for c in self.channels}
         self._subs: list[Subscription] = []
         self._acks: dict[str, int] = {}
         self._lock = threading.Condition()
@@ -129,15 +153,22 @@ class FramePublisher:
 
         Raises:
             UnknownChannel: channel_name is neither "" nor a rig channel.
+            ChannelTaken: channel_name already has an open subscription.
         """
         if channel_name and channel_name not in self.channels:
+            message = f"channel_name: {channel_name!r} is not a channel of the rig ({', '.join(self.channels)})"
             with self._lock:
                 self.status.subscriptions_rejected += 1
-                self.status.last_error = (f"channel_name: {channel_name!r} is not a channel of the rig "
-                                          f"({', '.join(self.channels)})")
-            raise UnknownChannel(self.status.last_error)
+                self.status.last_error = message
+            raise UnknownChannel(message)
         sub = Subscription(subscriber, channel_name)
         with self._lock:
+            taken = [s for s in self._subs if channel_name and s.channel_name == channel_name]
+            if taken:
+                message = f"channel_name: {channel_name!r} already has a subscriber ({taken[0].subscriber})"
+                self.status.subscriptions_rejected += 1
+                self.status.last_error = message
+                raise ChannelTaken(message)
             if self.status.finished:
                 sub.close()
             self._subs.append(sub)
@@ -145,10 +176,12 @@ class FramePublisher:
         return sub
 
     def unsubscribe(self, sub: Subscription) -> None:
+        """Forget a subscriber whose stream ended; the host stops waiting for its channel."""
         with self._lock:
             if sub in self._subs:
                 self._subs.remove(sub)
                 self.status.queue_drops[sub.subscriber] = sub.dropped
+                self._lock.notify_all()
 
     def ack(self, channel_name: str, frame_number: int, *, ok: bool = True, error: str = "") -> None:
         """A channel reports it has handled frame_number.
@@ -175,21 +208,29 @@ class FramePublisher:
             drops.update({sub.subscriber: sub.dropped for sub in self._subs})
             return HostStatus(s.run_id, s.frames_published, s.eyepoints_rejected, s.subscriptions_rejected,
                               dict(s.ack_timeouts), dict(s.ack_failures), drops,
-                              [sub.subscriber for sub in self._subs], s.finished, s.last_error)
+                              [sub.subscriber for sub in self._subs], s.finished, s.last_error,
+                              dict(s.channel_absent))
 
     def run(self, stop: threading.Event) -> None:
-        """Publish the whole run (blocking), then close every subscription."""
+        """Publish the whole run (blocking), then close every subscription.
+
+        Returns early, still closing the subscriptions, when stop is set.
+        """
         try:
             self._wait_for_subscribers(stop)
-            start = time.monotonic()
+            period = 1.0 / self.rate_hz
+            next_tick = time.monotonic()
             number = 0
             for tick in range(self.tick_count):
                 if stop.is_set():
                     break
-                # Never faster than the rate; when rendering is slower, the next frame goes at once.
-                delay = start + tick / self.rate_hz - time.monotonic()
+                # Never faster than the rate. When the channels took longer than a period the
+                # frame goes at once and the schedule restarts from now: the host never bursts
+                # frames to catch up with the wall clock (the simulation runs slow instead).
+                delay = next_tick - time.monotonic()
                 if delay > 0 and stop.wait(delay):
                     break
+                next_tick = max(next_tick, time.monotonic()) + period
                 sim_time = tick / self.rate_hz
                 sample_time = self.clock()
                 eyepoint = self.source(sim_time)
@@ -219,27 +260,53 @@ class FramePublisher:
         for sub in subs:
             sub.put(frame)
 
+    def _wait(self, predicate: Callable[[], bool], timeout_s: float, stop: threading.Event) -> bool:
+        """Wait (lock held) until predicate() holds, stop is set or timeout_s passes.
+
+        Returns predicate() at the end, so a stop is not mistaken for success.
+        """
+        deadline = time.monotonic() + timeout_s
+        while not predicate():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or stop.is_set():
+                return False
+            self._lock.wait(min(remaining, _STOP_POLL_S))
+        return True
+
+    def _subscribed_channels(self) -> set[str]:
+        return {s.channel_name for s in self._subs if s.channel_name}
+
     def _wait_for_subscribers(self, stop: threading.Event) -> None:
         def ready() -> bool:
-            names = {s.channel_name for s in self._subs}
             observers = sum(1 for s in self._subs if not s.channel_name)
-            return stop.is_set() or (all(c in names for c in self.channels) and observers >= self.observers)
+            return set(self.channels) <= self._subscribed_channels() and observers >= self.observers
         with self._lock:
-            if not self._lock.wait_for(ready, timeout=self.start_timeout_s):
-                names = {s.channel_name for s in self._subs}
-                missing = [c for c in self.channels if c not in names]
-                log.warning("starting without %s after %.0f s", missing or "observers", self.start_timeout_s)
+            if not self._wait(ready, self.start_timeout_s, stop) and not stop.is_set():
+                missing = [c for c in self.channels if c not in self._subscribed_channels()]
+                observers = sum(1 for s in self._subs if not s.channel_name)
+                log.warning("starting after %.0f s without channels %s, with %d of %d observers",
+                            self.start_timeout_s, missing, observers, self.observers)
 
     def _wait_for_acks(self, number: int, stop: threading.Event) -> None:
-        def done() -> bool:
-            return stop.is_set() or all(self._acks.get(c, -1) >= number for c in self.channels)
+        # Only channels with an open subscription can acknowledge; waiting for a worker that is
+        # down would stall every frame by the whole sync timeout. Re-evaluated on every wake-up,
+        # so a worker that dies during the wait is dropped from it.
+        def waiting_for() -> list[str]:
+            present = self._subscribed_channels()
+            return [c for c in self.channels if c in present and self._acks.get(c, -1) < number]
+
         with self._lock:
-            if not self._lock.wait_for(done, timeout=self.sync_timeout_s):
-                for c in self.channels:
-                    if self._acks.get(c, -1) < number:
-                        self.status.ack_timeouts[c] += 1
-                        log.warning("channel %s did not acknowledge frame %d within %.1f s",
-                                    c, number, self.sync_timeout_s)
+            absent = [c for c in self.channels if c not in self._subscribed_channels()]
+            if not self._wait(lambda: not waiting_for(), self.sync_timeout_s, stop) and not stop.is_set():
+                for c in waiting_for():
+                    self.status.ack_timeouts[c] += 1
+                    log.warning("channel %s did not acknowledge frame %d within %.1f s",
+                                c, number, self.sync_timeout_s)
+            absent += [c for c in self.channels if c not in self._subscribed_channels() and c not in absent]
+            for c in absent:
+                if self._acks.get(c, -1) < number:
+                    self.status.channel_absent[c] += 1
+                    log.warning("channel %s is not subscribed; frame %d goes on without it", c, number)
 
 
 def make_frame(number: int, sim_time: float, sample_time: float, eyepoint: Eyepoint, run_id: str,

@@ -10,7 +10,7 @@ import grpc
 from ig.v1 import host_pb2, host_pb2_grpc
 from services.grpc_util import add_health, bind, make_server, set_not_serving
 
-from .publisher import FramePublisher, UnknownChannel
+from .publisher import ChannelTaken, FramePublisher, UnknownChannel
 
 log = logging.getLogger("ig.host")
 SERVICE = "ig.v1.HostService"
@@ -28,7 +28,11 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
         try:
             sub = self.publisher.subscribe(request.subscriber or context.peer(), request.channel_name)
         except UnknownChannel as exc:
+            log.warning("subscription refused: %s", exc)
             context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+        except ChannelTaken as exc:
+            log.warning("subscription refused: %s", exc)
+            context.abort(grpc.StatusCode.ALREADY_EXISTS, str(exc))
         log.info("subscriber %s (channel %r) joined", sub.subscriber, sub.channel_name)
         try:
             while context.is_active() and not self.stop.is_set():
@@ -53,7 +57,7 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
             run_id=s.run_id, frames_published=s.frames_published, eyepoints_rejected=s.eyepoints_rejected,
             ack_timeouts=s.ack_timeouts, ack_failures=s.ack_failures, queue_drops=s.queue_drops,
             subscriptions_rejected=s.subscriptions_rejected, subscribers=s.subscribers,
-            finished=s.finished, last_error=s.last_error)
+            finished=s.finished, last_error=s.last_error, channel_absent=s.channel_absent)
 
 
 def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,

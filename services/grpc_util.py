@@ -14,9 +14,14 @@ from grpc_health.v1 import health, health_pb2, health_pb2_grpc
 #: Large enough for a 4096 x 4096 half-float RGB image (96 MiB) plus headers.
 MAX_MESSAGE_BYTES = 128 * 1024 * 1024
 
-#: Deadline of every unary RPC, seconds. A stream has none: it lives as long as the run, and
-#: keepalive pings detect a dead peer instead.
+#: Deadline of every unary RPC, seconds.
 RPC_DEADLINE_S = 5.0
+
+#: Deadline of a frame subscription, seconds. A stream lives as long as the run, whose length
+#: the subscriber cannot know (frame-locked runs slow down with the slowest channel), so its
+#: deadline is a long session; keepalive pings detect a dead peer long before. A subscriber
+#: whose stream hits the deadline subscribes again.
+STREAM_DEADLINE_S = 24 * 3600.0
 
 _OPTIONS = [
     ("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
@@ -89,5 +94,6 @@ def check_health(address: str, *, timeout_s: float = RPC_DEADLINE_S) -> str:
 
 
 def configure_logging(verbose: bool) -> None:
+    """Log to stderr with time stamps; DEBUG with verbose, else INFO."""
     logging.basicConfig(level=logging.DEBUG if verbose else logging.INFO,
                         format="%(asctime)s %(name)s %(levelname)s %(message)s")

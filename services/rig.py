@@ -17,7 +17,8 @@ class RigError(ValueError):
 
 @dataclass(frozen=True)
 class RigChannel:
-    """One channel of the rig: its view and the address of its worker's health server."""
+    """One channel of the rig: its view (a ChannelSpec, see channel_spec) and the address
+    (host:port) of its worker's health and status server."""
 
     spec: ChannelSpec
     address: str
@@ -59,7 +60,12 @@ class Rig:
 
 
 def default_rig_path() -> Path:
-    """The default three-channel rig shipped with the package (same as deploy/rigs/default.toml)."""
+    """The default three-channel rig shipped with the package (same as deploy/rigs/default.toml).
+
+    It is package data (services/data/default_rig.toml), so it is found from an editable
+    install, a wheel and a source checkout alike; tests/services/test_rig.py keeps the deploy
+    copy identical.
+    """
     return Path(__file__).resolve().parent / "data" / "default_rig.toml"
 
 
@@ -107,7 +113,9 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
     out = []
     for i, ch in enumerate(chans):
         where = f"channels[{i}]"
-        for key in _CHANNEL_KEYS - _OPTIONAL:
+        if not isinstance(ch, dict):
+            raise fail(where, f"{ch!r} is not a table")
+        for key in sorted(_CHANNEL_KEYS - _OPTIONAL):
             if key not in ch:
                 raise fail(where, f"missing key {key!r}")
         for key in ch:
@@ -137,19 +145,43 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
             if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 16384:
                 raise fail(f"{where}.{key}", f"{v!r} is not a whole number of pixels in [1, 16384]")
             size[key] = v
-        spec = ChannelSpec(name, size["width"], size["height"], nums["left_deg"], nums["right_deg"],
-                           nums["bottom_deg"], nums["top_deg"], nums["yaw_deg"], nums["pitch_deg"],
-                           nums["roll_deg"])
+        # The compositor stitches the channels side by side: one row, one height.
+        if out and size["height"] != out[0].spec.height:
+            raise fail(f"{where}.height", f"{size['height']} differs from channels[0].height "
+                                          f"{out[0].spec.height} (channels are stitched side by side)")
+        spec = channel_spec(name, width=size["width"], height=size["height"], **nums)
         out.append(RigChannel(spec, _address(ch["address"], f"{where}.address", fail)))
+    # Two services on one address would fail to bind, or worse, answer for each other.
+    seen = {addresses["host"]: "host.address"}
+    for where, address in [("compositor.address", addresses["compositor"])] + \
+            [(f"channels[{i}].address", c.address) for i, c in enumerate(out)]:
+        if address in seen:
+            raise fail(where, f"{address!r} is already used by {seen[address]}")
+        seen[address] = where
     return Rig(addresses["host"], addresses["compositor"], tuple(out), source)
+
+
+def channel_spec(name: str, *, width: int, height: int, left_deg: float, right_deg: float, bottom_deg: float,
+                 top_deg: float, yaw_deg: float = 0.0, pitch_deg: float = 0.0, roll_deg: float = 0.0) -> ChannelSpec:
+    """The pipeline's ChannelSpec of one rig channel.
+
+    Args:
+        name: channel name.
+        width, height: raster size, pixels.
+        left_deg, right_deg, bottom_deg, top_deg: frustum edges in the channel frame, degrees.
+        yaw_deg, pitch_deg, roll_deg: the channel's offset from the aircraft nose, degrees.
+    """
+    return ChannelSpec(name, int(width), int(height), float(left_deg), float(right_deg), float(bottom_deg),
+                       float(top_deg), float(yaw_deg), float(pitch_deg), float(roll_deg))
 
 
 def _address(value: Any, where: str, fail) -> str:
     if not isinstance(value, str) or ":" not in value:
         raise fail(where, f"{value!r} is not host:port")
     host, _, port = value.rpartition(":")
-    if not host or not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise fail(where, f"{value!r} is not host:port")
+    # Port 0 ("any free port") cannot be in a rig file: the other services must know the port.
+    if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise fail(where, f"{value!r} is not host:port with a port in [1, 65535]")
     return value
 
 

@@ -8,6 +8,7 @@ go to the stitcher; every other outcome is counted by cause and never stitched s
 from __future__ import annotations
 
 import math
+import struct
 import threading
 import time
 from collections import Counter
@@ -21,11 +22,16 @@ from ig.v1 import compositor_pb2, frame_pb2
 # Causes of an incomplete frame.
 MISSING_CHANNEL = "missing_channel"
 EYEPOINT_MISMATCH = "eyepoint_mismatch"
+INCOMPLETE_CAUSES = (MISSING_CHANNEL, EYEPOINT_MISMATCH)
 # Causes of a rejected submission.
 UNKNOWN_CHANNEL = "unknown_channel"
 BAD_EYEPOINT = "non_finite_eyepoint"
 BAD_PIXELS = "bad_pixels"
 DUPLICATE = "duplicate_image"
+OTHER_RUN = "other_run"
+
+_COMPLETE = "complete"
+_EYE_FIELDS = ("x", "y", "z", "heading_deg", "pitch_deg", "roll_deg")
 
 
 class InvalidSubmission(ValueError):
@@ -38,10 +44,19 @@ class InvalidSubmission(ValueError):
 
 @dataclass(frozen=True)
 class ChannelImage:
-    """A validated channel image."""
+    """A validated channel image.
+
+    Attributes:
+        channel: rig channel name.
+        rgb: (H, W, 3) float16 linear RGB, top row first.
+        eyepoint: the eyepoint the channel rendered: x, y, z metres, heading, pitch, roll degrees.
+        render_time_s: seconds the channel spent rendering.
+        control_sample_time: UNIX seconds of the control sample the frame was computed from.
+        frames_skipped: the worker's skipped-frame counter when it submitted.
+    """
 
     channel: str
-    rgb: np.ndarray  # (H, W, 3) float16 linear
+    rgb: np.ndarray
     eyepoint: tuple[float, ...]
     render_time_s: float
     control_sample_time: float
@@ -50,72 +65,97 @@ class ChannelImage:
 
 @dataclass(frozen=True)
 class CompleteFrame:
-    """A frame ready to stitch: images in rig channel order."""
+    """A frame ready to stitch: images in rig channel order.
+
+    Attributes:
+        frame_number: the host's frame number.
+        sim_time_s: simulation time of the frame, seconds.
+        eyepoint: the published eyepoint (as ChannelImage.eyepoint).
+        control_sample_time: UNIX seconds of the control sample the frame was computed from.
+        images: one per rig channel, in display order, left to right.
+    """
 
     frame_number: int
     sim_time_s: float
     eyepoint: tuple[float, ...]
+    control_sample_time: float
     images: tuple[ChannelImage, ...]
 
 
 @dataclass
-class _Pending:
+class _Open:
+    """A frame not decided yet: what the host published (if seen) and the images so far."""
+
+    since: float  # monotonic seconds when the compositor first heard of the frame
+    published: tuple[tuple[float, ...], float, float] | None = None  # eyepoint, sim time, sample time
     images: dict[str, ChannelImage] = field(default_factory=dict)
 
 
 def eyepoint_tuple(msg: frame_pb2.Eyepoint) -> tuple[float, ...]:
-    return (msg.x, msg.y, msg.z, msg.heading_deg, msg.pitch_deg, msg.roll_deg)
+    """x, y, z (metres), heading, pitch, roll (degrees) of a protobuf Eyepoint."""
+    return tuple(getattr(msg, name) for name in _EYE_FIELDS)
 
 
-_EYE_FIELDS = ("x", "y", "z", "heading_deg", "pitch_deg", "roll_deg")
+def same_bits(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
+    """True if two eyepoints are bitwise identical float64s (0.0 and -0.0 differ)."""
+    return struct.pack("<6d", *a) == struct.pack("<6d", *b)
 
 
-def percentiles(values: Sequence[float]) -> dict[str, float | None]:
-    """p50, p95, p99 in milliseconds (None without data)."""
+def percentiles(values: Sequence[float]) -> dict[str, float | int | None]:
+    """p50, p95, p99 in milliseconds of values in seconds (None without data), and the count."""
     if not values:
         return {"p50_ms": None, "p95_ms": None, "p99_ms": None, "count": 0}
-    a = np.asarray(values) * 1000.0
-    return {"p50_ms": round(float(np.percentile(a, 50)), 3), "p95_ms": round(float(np.percentile(a, 95)), 3),
-            "p99_ms": round(float(np.percentile(a, 99)), 3), "count": int(a.size)}
+    a = np.asarray(values, dtype=np.float64) * 1000.0
+    p50, p95, p99 = (round(float(v), 3) for v in np.percentile(a, [50, 95, 99]))
+    return {"p50_ms": p50, "p95_ms": p95, "p99_ms": p99, "count": int(a.size)}
 
 
 class FrameGatherer:
     """Collects channel images per frame number and decides each frame's fate.
 
+    A frame is decided once: complete (every channel, bitwise the published eyepoint), or
+    incomplete by cause when a newer frame completes (frames are rendered in order, so an older
+    open frame never will), when it has been open for pending_timeout_s, or at the end of the
+    run. Images for a decided frame are counted as late and dropped.
+
     Args:
         channels: rig channel names in display order.
         on_complete: called (outside the lock) with every complete frame, in frame order.
-        clock: wall clock (UNIX seconds) for latency figures.
+        pending_timeout_s: longest a frame stays open, seconds (see expire).
+        monotonic: clock for pending_timeout_s, seconds.
     """
 
-    def __init__(self, channels: Sequence[str], on_complete: Callable[[CompleteFrame], None],
-                 clock: Callable[[], float] = time.time) -> None:
+    def __init__(self, channels: Sequence[str], on_complete: Callable[[CompleteFrame], None], *,
+                 pending_timeout_s: float = 30.0, monotonic: Callable[[], float] = time.monotonic) -> None:
         self.channels = tuple(channels)
         self.on_complete = on_complete
-        self.clock = clock
+        self.pending_timeout_s = pending_timeout_s
+        self.monotonic = monotonic
         self._lock = threading.Lock()
-        self._published: dict[int, tuple[tuple[float, ...], float]] = {}
-        self._pending: dict[int, _Pending] = {}
-        self._final: dict[int, str] = {}  # frame number -> "complete" or incomplete cause
+        self._open: dict[int, _Open] = {}
+        self._decided: dict[int, str] = {}  # frame number -> "complete" or incomplete cause
+        self.run_id = ""
         self.frames_published = 0
         self.complete = 0
-        self.incomplete: Counter[str] = Counter()
+        self.incomplete: Counter[str] = Counter({c: 0 for c in INCOMPLETE_CAUSES})
         self.late_images = 0
         self.rejected: Counter[str] = Counter()
         self.last_rejection = ""
+        self.last_incomplete = ""
         self.render_times: dict[str, list[float]] = {c: [] for c in self.channels}
         self.skipped: dict[str, int] = {c: 0 for c in self.channels}
-        self.latencies: list[float] = []
-        self.run_id = ""
 
     # --- inputs -----------------------------------------------------------------------------
     def on_published(self, frame: frame_pb2.Frame) -> None:
         """The host published a frame (from the observer stream)."""
-        ready = []
         with self._lock:
-            self.run_id = frame.run_id
+            if frame.run_id != self.run_id:
+                self._new_run(frame.run_id)
             self.frames_published += 1
-            self._published[frame.frame_number] = (eyepoint_tuple(frame.eyepoint), frame.sim_time_s)
+            entry = self._entry(frame.frame_number)
+            if entry is None:
+                return
+            entry.published = (eyepoint_tuple(frame.eyepoint), frame.sim_time_s, frame.control_sample_time_unix_s)
             ready = self._settle(frame.frame_number)
         self._emit(ready)
 
@@ -124,48 +164,97 @@ class FrameGatherer:
 
         Raises:
             InvalidSubmission: unknown channel, non-finite eyepoint, pixels of the wrong size or
-                format, a second image for the same channel and frame. Counted by cause.
+                format, another run's image, a second image for the same channel and frame. The
+                frame is not touched; the rejection is counted by cause.
         """
         try:
             image = self._validate(request)
+            with self._lock:
+                if request.run_id and self.run_id and request.run_id != self.run_id:
+                    raise InvalidSubmission(OTHER_RUN, f"run_id: {request.run_id!r} is not the current run "
+                                                       f"{self.run_id!r}")
+                number = request.frame_number
+                entry = self._entry(number)
+                if entry is not None and image.channel in entry.images:
+                    raise InvalidSubmission(DUPLICATE, f"channel_name: {image.channel!r} already delivered "
+                                                       f"frame_number {number}")
+                # A late image was still rendered: its time and the worker's counter are real.
+                self.render_times[image.channel].append(image.render_time_s)
+                self.skipped[image.channel] = max(self.skipped[image.channel], image.frames_skipped)
+                if entry is None:
+                    self.late_images += 1
+                    return
+                entry.images[image.channel] = image
+                ready = self._settle(number)
         except InvalidSubmission as exc:
             with self._lock:
                 self.rejected[exc.cause] += 1
                 self.last_rejection = str(exc)
             raise
-        number = request.frame_number
-        with self._lock:
-            self.render_times[image.channel].append(image.render_time_s)
-            self.skipped[image.channel] = max(self.skipped[image.channel], image.frames_skipped)
-            if number in self._final:
-                self.late_images += 1
-                return
-            pending = self._pending.setdefault(number, _Pending())
-            if image.channel in pending.images:
-                self.rejected[DUPLICATE] += 1
-                raise InvalidSubmission(DUPLICATE, f"channel_name: {image.channel!r} already delivered frame {number}")
-            pending.images[image.channel] = image
-            ready = self._settle(number)
         self._emit(ready)
+
+    def expire(self) -> int:
+        """Finalise frames open longer than pending_timeout_s as incomplete; returns how many.
+
+        Called periodically: it catches a frame that no newer frame will overtake, e.g. the
+        last frames of a run whose channel died.
+        """
+        with self._lock:
+            limit = self.monotonic() - self.pending_timeout_s
+            old = [n for n, e in self._open.items() if e.since <= limit]
+            for n in sorted(old):
+                self._decide(n, MISSING_CHANNEL)
+            return len(old)
 
     def finalize_all(self) -> None:
         """End of run: every frame not yet decided is incomplete."""
         with self._lock:
-            for number in sorted(set(self._pending) | set(self._published)):
-                if number not in self._final:
-                    self._finalize(number, MISSING_CHANNEL)
+            for number in sorted(self._open):
+                self._decide(number, MISSING_CHANNEL)
+
+    @property
+    def pending(self) -> int:
+        """Frames seen but not decided yet."""
+        with self._lock:
+            return len(self._open)
 
     # --- decisions ----------------------------------------------------------------------------
+    def _new_run(self, run_id: str) -> None:
+        """The host's run changed (lock held).
+
+        Before the first published frame, images may already be waiting (a worker can be
+        quicker than the observer stream); they belong to this first run and stay. After a
+        run, frame numbers start again: what is still open is lost, and counted so.
+        """
+        if self.run_id:
+            for number in sorted(self._open):
+                self._decide(number, MISSING_CHANNEL)
+            self._decided.clear()
+        self.run_id = run_id
+
+    def _entry(self, number: int) -> _Open | None:
+        """The open frame number, opened now if new; None if it was decided (lock held)."""
+        if number in self._decided:
+            return None
+        entry = self._open.get(number)
+        if entry is None:
+            entry = self._open[number] = _Open(since=self.monotonic())
+        return entry
+
     def _validate(self, r: compositor_pb2.SubmitChannelImageRequest) -> ChannelImage:
         if r.channel_name not in self.channels:
             raise InvalidSubmission(UNKNOWN_CHANNEL, f"channel_name: {r.channel_name!r} is not a channel of the rig "
                                                      f"({', '.join(self.channels)})")
+        if not r.HasField("eyepoint"):
+            raise InvalidSubmission(BAD_EYEPOINT, "eyepoint: missing")
         for name in _EYE_FIELDS:
             value = getattr(r.eyepoint, name)
             if not math.isfinite(value):
                 raise InvalidSubmission(BAD_EYEPOINT, f"eyepoint.{name}: {value} is not finite")
         if r.pixel_format != compositor_pb2.PIXEL_FORMAT_RGB_F16:
-            raise InvalidSubmission(BAD_PIXELS, f"pixel_format: {r.pixel_format} is not PIXEL_FORMAT_RGB_F16")
+            name = compositor_pb2.PixelFormat.Name(r.pixel_format) if r.pixel_format in \
+                compositor_pb2.PixelFormat.values() else str(r.pixel_format)
+            raise InvalidSubmission(BAD_PIXELS, f"pixel_format: {name} is not PIXEL_FORMAT_RGB_F16")
         expected = r.width * r.height * 3 * 2
         if r.width == 0 or r.height == 0 or len(r.pixels) != expected:
             raise InvalidSubmission(BAD_PIXELS, f"pixels: {len(r.pixels)} bytes, expected {expected} for "
@@ -175,33 +264,33 @@ class FrameGatherer:
                             r.control_sample_time_unix_s, r.frames_skipped)
 
     def _settle(self, number: int) -> list[CompleteFrame]:
-        """Decide frame number if it can be decided now (lock held); older open frames that
-        can no longer complete are finalised as incomplete."""
-        pending = self._pending.get(number)
-        if pending is None or number not in self._published or len(pending.images) < len(self.channels):
+        """Decide frame number if it can be decided now (lock held)."""
+        entry = self._open.get(number)
+        if entry is None or entry.published is None or len(entry.images) < len(self.channels):
             return []
-        eyepoint, sim_time = self._published[number]
-        if any(img.eyepoint != eyepoint for img in pending.images.values()):
-            self._finalize(number, EYEPOINT_MISMATCH)
+        eyepoint, sim_time, sample_time = entry.published
+        wrong = [img.channel for img in entry.images.values() if not same_bits(img.eyepoint, eyepoint)]
+        if wrong:
+            self._decide(number, EYEPOINT_MISMATCH, f"channels {', '.join(wrong)} rendered another eyepoint")
             return []
         # Frames are rendered in order: once a newer frame is complete, older open ones never will be.
-        for older in [n for n in set(self._pending) | set(self._published) if n < number]:
-            if older not in self._final:
-                self._finalize(older, MISSING_CHANNEL)
-        images = tuple(pending.images[c] for c in self.channels)
-        self._finalize(number, "complete")
-        now = self.clock()
-        self.latencies.append(now - images[0].control_sample_time)
-        return [CompleteFrame(number, sim_time, eyepoint, images)]
+        for older in sorted(n for n in self._open if n < number):
+            self._decide(older, MISSING_CHANNEL)
+        images = tuple(entry.images[c] for c in self.channels)
+        self._decide(number, _COMPLETE)
+        return [CompleteFrame(number, sim_time, eyepoint, sample_time, images)]
 
-    def _finalize(self, number: int, outcome: str) -> None:
-        self._final[number] = outcome
-        self._pending.pop(number, None)
-        self._published.pop(number, None)
-        if outcome == "complete":
+    def _decide(self, number: int, outcome: str, detail: str = "") -> None:
+        entry = self._open.pop(number, None)
+        self._decided[number] = outcome
+        if outcome == _COMPLETE:
             self.complete += 1
-        else:
-            self.incomplete[outcome] += 1
+            return
+        self.incomplete[outcome] += 1
+        if outcome == MISSING_CHANNEL and entry is not None:
+            missing = [c for c in self.channels if c not in entry.images]
+            detail = detail or (f"missing {', '.join(missing)}" if missing else "host frame not seen")
+        self.last_incomplete = f"frame {number}: {outcome}: {detail}"
 
     def _emit(self, ready: list[CompleteFrame]) -> None:
         for frame in ready:
@@ -209,20 +298,19 @@ class FrameGatherer:
 
     # --- report -------------------------------------------------------------------------------
     def report(self) -> dict:
-        """Counters and latency figures as a JSON-ready dict."""
+        """Counters and render-time figures as a JSON-ready dict."""
         with self._lock:
             return {
                 "run_id": self.run_id,
                 "channels": list(self.channels),
                 "frames_published": self.frames_published,
                 "frames_complete": self.complete,
-                "frames_incomplete": {MISSING_CHANNEL: self.incomplete[MISSING_CHANNEL],
-                                      EYEPOINT_MISMATCH: self.incomplete[EYEPOINT_MISMATCH]},
-                "frames_pending": len(set(self._pending) | set(self._published)),
+                "frames_incomplete": {c: self.incomplete[c] for c in INCOMPLETE_CAUSES},
+                "frames_pending": len(self._open),
+                "last_incomplete": self.last_incomplete,
                 "late_images": self.late_images,
                 "rejected_submissions": dict(sorted(self.rejected.items())),
                 "last_rejection": self.last_rejection,
                 "render_time": {c: percentiles(v) for c, v in self.render_times.items()},
-                "control_to_composite_latency": percentiles(self.latencies),
                 "frames_skipped": dict(self.skipped),
             }

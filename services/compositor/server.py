@@ -7,52 +7,75 @@ import logging
 import threading
 import time
 from pathlib import Path
+from typing import Sequence
 
 import grpc
 
 from ig.v1 import compositor_pb2, compositor_pb2_grpc, host_pb2, host_pb2_grpc
-from services.grpc_util import RPC_DEADLINE_S, add_health, bind, make_channel, make_server, set_not_serving
+from services.grpc_util import (RPC_DEADLINE_S, STREAM_DEADLINE_S, add_health, bind, make_channel, make_server,
+                                set_not_serving)
 
-from .gather import FrameGatherer, InvalidSubmission
+from .gather import FrameGatherer, InvalidSubmission, percentiles
 from .stitch import FrameWriter
 
 log = logging.getLogger("ig.compositor")
 SERVICE = "ig.v1.CompositorService"
 
+#: How often serve() finalises frames that have been open too long, seconds.
+_EXPIRE_EVERY_S = 0.5
+
 
 class Compositor:
-    """Gatherer + writer + the run's state, shared by the servicer and the host observer."""
+    """Gatherer + writer + the run's state, shared by the servicer and the host observer.
 
-    def __init__(self, channels, out_dir: Path, *, exr_every: int = 30) -> None:
+    Args:
+        channels: rig channel names in display order.
+        out_dir: where frames/ and report.json go.
+        exr_every: write an EXR every N frames (0: never).
+        pending_timeout_s: a frame open this long is finalised as incomplete, seconds.
+    """
+
+    def __init__(self, channels: Sequence[str], out_dir: Path, *, exr_every: int = 30,
+                 pending_timeout_s: float = 30.0) -> None:
         self.out_dir = Path(out_dir)
         self.writer = FrameWriter(self.out_dir / "frames", exr_every=exr_every)
-        self.gatherer = FrameGatherer(channels, self.writer.put)
+        self.gatherer = FrameGatherer(channels, self.writer.put, pending_timeout_s=pending_timeout_s)
         self.finished = threading.Event()
+        #: The host's final counters (GetHostStatus after its run), for the report.
         self.host_status: dict = {}
 
     def report(self) -> dict:
+        """The report document (report.json): gatherer counters, writer counters, host counters."""
         doc = self.gatherer.report()
-        doc["frames_written"] = self.writer.written
-        doc["write_errors"] = self.writer.errors
+        written, errors, latencies = self.writer.snapshot()
+        doc["control_to_composite_latency"] = percentiles(latencies)
+        doc["frames_written"] = written
+        doc["write_errors"] = errors
         doc["frames_dir"] = str(self.out_dir / "frames")
         doc["host"] = self.host_status
+        doc["finished"] = self.finished.is_set()
         return doc
 
     def finish(self, *, grace_s: float) -> dict:
-        """End of run: wait up to grace_s for frames still open, then decide and report."""
+        """End of run: wait up to grace_s seconds for open frames, decide them, write report.json."""
         deadline = time.monotonic() + grace_s
-        while self.gatherer.report()["frames_pending"] and time.monotonic() < deadline:
+        while self.gatherer.pending and time.monotonic() < deadline:
             time.sleep(0.05)
         self.gatherer.finalize_all()
         self.writer.close()
+        self.finished.set()
         doc = self.report()
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        (self.out_dir / "report.json").write_text(json.dumps(doc, indent=2) + "\n")
-        self.finished.set()
+        # Written to a temporary name and renamed, so a reader never sees half a report.
+        tmp = self.out_dir / "report.json.tmp"
+        tmp.write_text(json.dumps(doc, indent=2) + "\n")
+        tmp.replace(self.out_dir / "report.json")
         return doc
 
 
 class CompositorServicer(compositor_pb2_grpc.CompositorServiceServicer):
+    """Thin servicer: submissions go to the gatherer, the report comes from the compositor."""
+
     def __init__(self, compositor: Compositor) -> None:
         self.compositor = compositor
 
@@ -62,47 +85,52 @@ class CompositorServicer(compositor_pb2_grpc.CompositorServiceServicer):
         try:
             self.compositor.gatherer.submit(request)
         except InvalidSubmission as exc:
-            log.warning("submission refused: %s", exc)
+            log.warning("submission refused (%s from %s): %s", exc.cause, context.peer(), exc)
             context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
         return compositor_pb2.SubmitChannelImageResponse()
 
     def GetCompositorReport(self, request, context):
+        doc = self.compositor.report()
         return compositor_pb2.GetCompositorReportResponse(
-            report_json=json.dumps(self.compositor.report()), finished=self.compositor.finished.is_set())
+            report_json=json.dumps(doc), finished=doc["finished"], frames_published=doc["frames_published"],
+            frames_complete=doc["frames_complete"], frames_incomplete=sum(doc["frames_incomplete"].values()),
+            frames_written=doc["frames_written"])
 
 
 def observe_host(compositor: Compositor, host_address: str, stop: threading.Event) -> bool:
     """Follow the host's frame stream as an observer until its run ends; True if it did end.
 
-    Retries while the host is not up yet. The host's final status is kept for the report.
+    Subscribes again while the host is not up yet or the stream breaks. The host closing the
+    stream normally means its run is over; the host's final counters are then kept for the report.
     """
     with make_channel(host_address) as channel:
         stub = host_pb2_grpc.HostServiceStub(channel)
-        seen = False
-        while not stop.is_set():
+        ended = False
+        while not stop.is_set() and not ended:
+            stream = stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="compositor"),
+                                          wait_for_ready=True, timeout=STREAM_DEADLINE_S)
+            # SIGTERM must not wait for the next frame: cancel the stream when stop is set.
+            done = threading.Event()
+            threading.Thread(target=_cancel_on_stop, args=(stream, stop, done), daemon=True).start()
             try:
-                stream = stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="compositor"),
-                                              wait_for_ready=True, timeout=None)
                 for response in stream:
-                    seen = True
                     compositor.gatherer.on_published(response.frame)
-                    if stop.is_set():
-                        stream.cancel()
-                        return False
-                if seen:
-                    break
+                ended = True
             except grpc.RpcError as exc:
-                if exc.code() == grpc.StatusCode.CANCELLED:
+                if stop.is_set():
                     return False
-                log.warning("host stream: %s %s; retrying", exc.code().name, exc.details())
-            stop.wait(1.0)
-        if not seen:
+                log.warning("host stream: %s %s; subscribing again", exc.code().name, exc.details())
+                stop.wait(1.0)
+            finally:
+                done.set()
+        if not ended:
             return False
         try:
             s = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=RPC_DEADLINE_S)
             compositor.host_status = {
-                "frames_published": s.frames_published, "eyepoints_rejected": s.eyepoints_rejected,
-                "ack_timeouts": dict(s.ack_timeouts), "ack_failures": dict(s.ack_failures),
+                "run_id": s.run_id, "frames_published": s.frames_published,
+                "eyepoints_rejected": s.eyepoints_rejected, "ack_timeouts": dict(s.ack_timeouts),
+                "ack_failures": dict(s.ack_failures), "channel_absent": dict(s.channel_absent),
                 "subscriptions_rejected": s.subscriptions_rejected, "queue_drops": dict(s.queue_drops),
                 "last_error": s.last_error}
         except grpc.RpcError as exc:
@@ -110,11 +138,24 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
         return True
 
 
+def _cancel_on_stop(stream: grpc.Future, stop: threading.Event, done: threading.Event) -> None:
+    """Cancel stream as soon as stop is set; return when done is set first."""
+    while not done.is_set():
+        if stop.wait(0.2):
+            stream.cancel()
+            return
+
+
 def serve(compositor: Compositor, address: str, host_address: str, stop: threading.Event, *,
           once: bool = False, grace_s: float = 5.0) -> dict:
-    """Serve the compositor on address; returns the final report.
+    """Serve the compositor on address and follow the host at host_address; returns the final report.
 
-    With once, the compositor finishes when the host's run ends; otherwise on stop (SIGTERM).
+    With once, the compositor finishes when the host's run ends; otherwise when stop is set
+    (SIGTERM). Either way it finalises open frames, writes report.json, reports NOT_SERVING and
+    stops the server.
+
+    Raises:
+        OSError: address cannot be bound.
     """
     server = make_server()
     compositor_pb2_grpc.add_CompositorServiceServicer_to_server(CompositorServicer(compositor), server)
@@ -130,12 +171,14 @@ def serve(compositor: Compositor, address: str, host_address: str, stop: threadi
 
     threading.Thread(target=follow, name="host-observer", daemon=True).start()
     while not stop.is_set() and not (once and observer_done.is_set()):
-        stop.wait(0.2)
-    doc = compositor.finish(grace_s=grace_s)
-    # Keep answering briefly so clients can fetch the final report.
-    if once:
+        compositor.gatherer.expire()
+        stop.wait(_EXPIRE_EVERY_S)
+    doc = compositor.finish(grace_s=0.0 if stop.is_set() else grace_s)
+    # Keep answering briefly so clients (ig demo) can fetch the final report.
+    if once and not stop.is_set():
         stop.wait(1.0)
     set_not_serving(health, [SERVICE])
     server.stop(grace=1.0).wait()
-    log.info("compositor done: %d complete, incomplete %s", doc["frames_complete"], doc["frames_incomplete"])
+    log.info("compositor done: %d complete, incomplete %s, report in %s", doc["frames_complete"],
+             doc["frames_incomplete"], compositor.out_dir / "report.json")
     return doc

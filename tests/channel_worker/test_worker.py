@@ -69,3 +69,57 @@ def test_pixels_are_little_endian_half_rows_top_first():
     raw = encode_rgb_f16(rgb)
     assert len(raw) == 2 * 3 * 3 * 2
     np.testing.assert_array_equal(np.frombuffer(raw, "<f2").reshape(2, 3, 3), rgb)
+
+
+def test_status_rpc_reports_the_counters(make_scene, box_model_factory):
+    from channel_worker.worker import SERVICE, WorkerStatusServicer
+    from ig.v1 import worker_pb2, worker_pb2_grpc
+    from services.grpc_util import add_health, check_health, make_channel, make_server
+
+    w, _ = worker(make_scene, box_model_factory)
+    w._handle(frame(0))
+    w._handle(frame(3, x=float("nan")))
+    server = make_server(max_workers=2)
+    worker_pb2_grpc.add_ChannelWorkerServiceServicer_to_server(WorkerStatusServicer(w), server)
+    add_health(server, [SERVICE])
+    port = server.add_insecure_port("127.0.0.1:0")
+    server.start()
+    try:
+        address = f"127.0.0.1:{port}"
+        assert check_health(address) == "SERVING"
+        with make_channel(address) as ch:
+            s = worker_pb2_grpc.ChannelWorkerServiceStub(ch).GetWorkerStatus(worker_pb2.GetWorkerStatusRequest(),
+                                                                             timeout=5)
+        assert (s.channel_name, s.frames_handled, s.frames_rendered, s.frames_refused, s.frames_skipped) == \
+            ("centre", 2, 1, 1, 2)
+        assert s.last_frame_number == 3 and s.run_id == "r" and not s.subscribed
+        assert "frame 3 refused: eyepoint.position[0]: nan is not finite" in s.last_error
+    finally:
+        server.stop(0).wait()
+
+
+def test_a_refused_subscription_ends_the_worker_with_the_reason(make_scene, box_model_factory):
+    import threading
+
+    from channel_worker.pipeline.types import Eyepoint
+    from host_sim.publisher import FramePublisher
+    from host_sim.server import HostServicer
+    from ig.v1 import host_pb2_grpc
+    from services.grpc_util import make_server
+
+    pub = FramePublisher(source=lambda t: Eyepoint.of(0, 0, 10, 0, 0, 0), channels=["left"], duration_s=0.0)
+    stop = threading.Event()
+    server = make_server(max_workers=4)
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub, stop), server)
+    port = server.add_insecure_port("127.0.0.1:0")
+    server.start()
+    try:
+        db = make_scene({"b": box_model_factory(1, 1, 1)}, [{"model": "b", "position": [0, 0, 0]}])
+        w = ChannelWorker(db, ChannelSpec.symmetric("centre", 16, 12, 60.0), host_address=f"127.0.0.1:{port}",
+                          compositor_address=f"127.0.0.1:{port}", samples=1)
+        w.run(threading.Event())  # returns: the host does not know "centre"
+        assert "channel_name: 'centre' is not a channel of the rig (left)" in w.refused
+        assert w.counters.frames_handled == 0
+    finally:
+        stop.set()
+        server.stop(0).wait()

@@ -1,11 +1,12 @@
 """Frame publication and the synchronous frame lock, without a network."""
 
 import threading
+import time
 
 import pytest
 
 from channel_worker.pipeline.types import Eyepoint
-from host_sim.publisher import FramePublisher, UnknownChannel
+from host_sim.publisher import ChannelTaken, FramePublisher, UnknownChannel
 
 
 def source(t):
@@ -118,6 +119,108 @@ def test_a_stalled_subscriber_drops_oldest_and_never_blocks_others():
     assert left[-1].frame_number == pub.tick_count - 1  # the newest frames are kept
 
 
-def test_bad_rate_is_named():
-    with pytest.raises(ValueError, match="rate_hz: 0.0 must be > 0"):
-        FramePublisher(source=source, channels=["a"], rate_hz=0.0)
+@pytest.mark.parametrize("kw,pattern", [
+    (dict(rate_hz=0.0), "rate_hz: 0.0 must be a finite number > 0"),
+    (dict(rate_hz=float("nan")), "rate_hz: nan must be"),
+    (dict(duration_s=-1.0), "duration_s: -1.0 must be"),
+    (dict(sync_timeout_s=0.0), "sync_timeout_s: 0.0 must be > 0"),
+])
+def test_bad_options_are_named(kw, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        FramePublisher(source=source, channels=["a"], **kw)
+
+
+def test_a_second_subscriber_for_a_channel_is_refused():
+    pub = FramePublisher(source=source, channels=["a"], duration_s=0.0)
+    pub.subscribe("first", "a")
+    with pytest.raises(ChannelTaken, match=r"channel_name: 'a' already has a subscriber \(first\)"):
+        pub.subscribe("second", "a")
+    pub.subscribe("obs1", "")
+    pub.subscribe("obs2", "")  # any number of observers
+    assert pub.snapshot().subscriptions_rejected == 1
+
+
+def test_stop_interrupts_the_wait_for_subscribers():
+    # Nobody subscribes and the start timeout is far away: only stop can end run().
+    pub = FramePublisher(source=source, channels=["a"], duration_s=1.0, start_timeout_s=3600.0)
+    stop = threading.Event()
+    runner = threading.Thread(target=pub.run, args=(stop,))
+    runner.start()
+    stop.set()
+    runner.join()
+    status = pub.snapshot()
+    assert status.finished and status.frames_published == 0
+
+
+def test_stop_interrupts_the_wait_for_acks():
+    pub = FramePublisher(source=source, channels=["a"], rate_hz=100.0, duration_s=1.0, sync_timeout_s=3600.0)
+    sub = pub.subscribe("silent", "a")
+    stop = threading.Event()
+    runner = threading.Thread(target=pub.run, args=(stop,))
+    runner.start()
+    assert sub.get(60.0).frame_number == 0  # published, and now waiting for an ack that never comes
+    stop.set()
+    runner.join()
+    status = pub.snapshot()
+    assert status.frames_published == 1 and status.ack_timeouts == {"a": 0}  # a stop is not a timeout
+    assert sub.get(0.0) is None and sub.closed
+
+
+def test_an_absent_channel_is_not_waited_for_and_is_counted():
+    # "b" never subscribes: the start timeout passes, then every frame goes without it and
+    # without waiting the (long) sync timeout for it.
+    pub = FramePublisher(source=source, channels=["a", "b"], rate_hz=1000.0, duration_s=0.004,
+                         sync_timeout_s=3600.0, start_timeout_s=0.0)
+    received, _ = run_with_channels(pub, ["a"])
+    status = pub.snapshot()
+    assert received["a"] == list(range(pub.tick_count))
+    assert status.channel_absent == {"a": 0, "b": pub.tick_count}
+    assert status.ack_timeouts == {"a": 0, "b": 0}
+
+
+def test_a_channel_that_leaves_mid_run_stops_being_waited_for():
+    pub = FramePublisher(source=source, channels=["a", "b"], rate_hz=1000.0, duration_s=0.005,
+                         sync_timeout_s=3600.0)
+    sub_b = pub.subscribe("w-b", "b")
+
+    def leave_after_first_frame():
+        assert sub_b.get(60.0).frame_number == 0
+        pub.unsubscribe(sub_b)  # the worker died without acknowledging frame 0
+
+    leaver = threading.Thread(target=leave_after_first_frame)
+    leaver.start()
+    received, _ = run_with_channels(pub, ["a"])
+    leaver.join()
+    assert received["a"] == list(range(pub.tick_count))
+    assert pub.snapshot().channel_absent["b"] == pub.tick_count
+
+
+def test_a_slow_frame_does_not_make_the_host_burst_to_catch_up():
+    # Frame 0 takes 10 periods to acknowledge. Anchored to the start, frames 1..10 would then be
+    # published back to back; the host restarts its schedule from frame 1 instead, so frame k
+    # goes no earlier than k - 1 periods after frame 1 (a lower bound the host guarantees by
+    # waiting; a slow machine only makes the gaps longer).
+    period = 0.02
+    times = []
+    pub = FramePublisher(source=source, channels=["a"], rate_hz=1 / period, duration_s=5 * period,
+                         clock=lambda: (times.append(time.monotonic()), time.time())[1])
+    sub = pub.subscribe("w-a", "a")
+
+    def channel():
+        while (f := sub.get(0.05)) is not None or not sub.closed:
+            if f is None:
+                continue
+            if f.frame_number == 0:
+                time.sleep(10 * period)
+            pub.ack("a", f.frame_number)
+
+    t = threading.Thread(target=channel)
+    t.start()
+    pub.run(threading.Event())
+    t.join()
+    # the clock is called twice per tick (control sample, publish); take the control samples
+    samples = times[::2]
+    assert len(samples) == pub.tick_count
+    slack = 1e-3  # between reading the schedule's clock and the control-sample clock
+    for k in range(2, len(samples)):
+        assert samples[k] - samples[1] >= (k - 1) * period - slack

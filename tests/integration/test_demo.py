@@ -49,3 +49,19 @@ def test_ctrl_c_stops_every_process(tmp_path):
     assert "interrupted" in output
     leftover = processes_mentioning(rig)
     assert leftover == [], f"still running: {leftover}"
+
+
+def test_a_failing_worker_stops_the_demo_at_once(tmp_path):
+    """A worker that cannot load its scene ends the demo with its exit code and its message,
+    instead of the host waiting out its timeouts for a channel that will never come."""
+    scene = tmp_path / "bad.json"
+    scene.write_text('{"format": "ig-scene/1", "sky": {"colour": "#zzzzzz"}, "earth": {"colour": "#000000"},'
+                     ' "models": {}, "instances": []}')
+    out = tmp_path / "demo"
+    proc = subprocess.run([sys.executable, "-m", "services.cli", "demo", "--scene", str(scene), "--width", "32",
+                           "--height", "24", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "exited with code 2" in proc.stderr
+    assert "sky.colour" in proc.stderr and "#zzzzzz" in proc.stderr  # the worker's own message
+    assert processes_mentioning(str(out / "rig.toml")) == []

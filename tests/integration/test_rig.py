@@ -10,17 +10,18 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import grpc
 import numpy as np
 import pytest
 
-from ig.v1 import compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc
+from ig.v1 import (compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc, worker_pb2,
+                   worker_pb2_grpc)
 from services.demo import local_rig, rig_toml
 from services.grpc_util import check_health, make_channel
 from services.image_io import read_image
@@ -28,8 +29,8 @@ from services.rig import default_rig_path, load_rig
 
 pytestmark = pytest.mark.integration
 
-W, H = 96, 72
-RATE, DURATION = 10.0, 3.0
+W, H = 160, 120
+RATE, DURATION = 20.0, 1.5
 EXPECTED = int(round(RATE * DURATION)) + 1
 ROOT = Path(__file__).resolve().parent.parent.parent
 
@@ -91,6 +92,7 @@ def rig_run(tmp_path_factory):
                             [("host", rig.host_address, "host"),
                              ("compositor", rig.compositor_address, "compositor")]
                             + [(ch.name, ch.address, f"worker-{ch.name}") for ch in rig.channels]}
+        result["status"] = {ch.name: worker_status(ch.address) for ch in rig.channels}
         result["bad"] = throw_bad_input(rig, tmp, rig_path)
         result["exit"] = wait_all(procs)
     finally:
@@ -104,6 +106,12 @@ def rig_run(tmp_path_factory):
     report = out / "report.json"
     result["report"] = json.loads(report.read_text()) if report.exists() else {}
     return result
+
+
+def worker_status(address):
+    with make_channel(address) as ch:
+        return worker_pb2_grpc.ChannelWorkerServiceStub(ch).GetWorkerStatus(worker_pb2.GetWorkerStatusRequest(),
+                                                                            timeout=5)
 
 
 def throw_bad_input(rig, tmp, rig_path):
@@ -167,6 +175,34 @@ def test_every_frame_is_complete_and_stitched_from_the_same_frame(rig_run):
         assert all(report["render_time"][c][p] > 0 for c in ("left", "centre", "right"))
 
 
+def test_workers_serve_their_status(rig_run):
+    for name, status in rig_run["status"].items():
+        assert status.channel_name == name
+        assert status.frames_refused == 0 and status.submit_failures == 0
+
+
+def test_each_third_of_a_stitched_frame_is_its_channel_at_the_published_eyepoint(rig_run):
+    # Render every channel here, at the eyepoint the host publishes for the frame (the bundled
+    # flight at frame_number / rate: no eyepoint is refused on this flight), and compare with
+    # the stitched EXR: the right channel, in the right place, from the same frame.
+    from channel_worker.pipeline.render import render_frame
+    from channel_worker.pipeline.scene import bundled_scene_path, load_scene
+    from host_sim.flight import bundled_flight
+
+    database = load_scene(bundled_scene_path())
+    flight = bundled_flight()
+    for n in (10, EXPECTED - 1 - (EXPECTED - 1) % 10):
+        pixels, attrs = read_image(rig_run["out"] / "frames" / f"frame_{n:06d}.exr")
+        eyepoint = flight.eyepoint_at(n / RATE)
+        x, y, z, h, p, r = (float(v) for v in attrs["eyepoint"].split())
+        assert (x, y, z, h, p, r) == (*eyepoint.position, eyepoint.heading_deg, eyepoint.pitch_deg,
+                                      eyepoint.roll_deg)  # bitwise: the host's eyepoint
+        for i, ch in enumerate(rig_run["rig"].channels):
+            expected = render_frame(database, ch.spec, eyepoint, samples=4).rgb.astype(np.float16)
+            np.testing.assert_allclose(pixels[:, i * W:(i + 1) * W], expected.astype(np.float32),
+                                       rtol=1e-3, atol=1e-3, err_msg=f"frame {n} channel {ch.name}")
+
+
 def test_every_process_exits_cleanly(rig_run):
     assert rig_run["exit"] == {"compositor": 0, "worker-left": 0, "worker-centre": 0, "worker-right": 0, "host": 0}, \
         rig_run["logs"]
@@ -183,3 +219,38 @@ def test_bad_input_gets_named_errors_and_the_rig_keeps_running(rig_run):
     assert report["rejected_submissions"] == {"non_finite_eyepoint": 1, "unknown_channel": 1}
     assert report["host"]["subscriptions_rejected"] == 1
     assert report["frames_complete"] == EXPECTED  # nothing else was lost
+
+
+def test_sigterm_stops_every_service_cleanly(tmp_path):
+    """Host (still waiting for its channels), compositor and a worker all stop on SIGTERM.
+
+    The host's start timeout is an hour: only SIGTERM can end it, and it must not wait it out.
+    """
+    rig = local_rig(load_rig(default_rig_path()).with_size(32, 24))
+    rig_path = tmp_path / "rig.toml"
+    rig_path.write_text(rig_toml(rig))
+    out = tmp_path / "out"
+    procs, logs = {}, {}
+    try:
+        for name, argv in [("host", ["host", "--start-timeout", "3600"]),
+                           ("compositor", ["compositor", "--out", str(out)]),
+                           ("worker-left", ["worker", "--channel", "left", "--samples", "1"])]:
+            logs[name] = open(tmp_path / f"{name}.log", "w")
+            procs[name] = start([*argv, "--rig", str(rig_path)], logs[name])
+        addresses = {"host": rig.host_address, "compositor": rig.compositor_address,
+                     "worker-left": rig.channels[0].address}
+        assert {n: wait_serving(addresses[n], procs[n]) for n in procs} == {n: "SERVING" for n in procs}
+        for proc in procs.values():
+            proc.send_signal(signal.SIGTERM)
+        codes = {n: p.wait(timeout=120) for n, p in procs.items()}
+    finally:
+        for proc in procs.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        for f in logs.values():
+            f.close()
+    assert codes == {"host": 0, "compositor": 0, "worker-left": 0}, \
+        {n: (tmp_path / f"{n}.log").read_text() for n in procs}
+    report = json.loads((out / "report.json").read_text())
+    assert report["frames_published"] == 0 and report["finished"]

@@ -30,4 +30,27 @@ def test_subcommand_help(cmd, option, capsys):
 
 def test_worker_with_unknown_channel_exits_2(capsys):
     assert main(["worker", "--channel", "bogus"]) == 2
-    assert "channel_name: 'bogus' is not a channel of the rig" in capsys.readouterr().err
+    assert "ig worker: error: channel_name: 'bogus' is not a channel of the rig" in capsys.readouterr().err
+
+
+def test_bad_rig_file_exits_2_naming_the_key(tmp_path, capsys):
+    rig = tmp_path / "rig.toml"
+    rig.write_text('[host]\naddress = "nowhere"\n')
+    for cmd in (["host"], ["compositor"], ["worker", "--channel", "left"], ["demo"]):
+        assert main([*cmd, "--rig", str(rig)]) == 2
+        assert "host.address: 'nowhere' is not host:port" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["host", "--rate", "0"], ["host", "--sync-timeout", "nan"],
+                                  ["demo", "--width", "0"], ["demo", "--duration", "-1"]])
+def test_bad_numbers_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert argv[-2] in capsys.readouterr().err
+
+
+def test_demo_with_an_unknown_sample_pattern_exits_2_before_starting_anything(tmp_path, capsys):
+    assert main(["demo", "--samples", "7", "--out", str(tmp_path / "demo")]) == 2
+    assert "samples: 7 has no pattern" in capsys.readouterr().err
+    assert not (tmp_path / "demo").exists()

@@ -2,7 +2,7 @@
 
 import pytest
 
-from services.rig import RigError, default_rig_path, load_rig, parse_rig
+from services.rig import RigError, channel_spec, default_rig_path, load_rig, parse_rig
 
 ROOT = default_rig_path().parent.parent.parent
 
@@ -38,12 +38,36 @@ def doc():
     (lambda d: d["host"].update(address="nowhere"), r"host.address: 'nowhere' is not host:port"),
     (lambda d: d["channels"].append(dict(d["channels"][0])), r"channels\[1\].name: 'c' is used twice"),
     (lambda d: d["channels"][0].update(yaw_deg=float("nan")), r"channels\[0\].yaw_deg: nan is not a finite"),
+    (lambda d: d["channels"][0].update(yaw_deg="left"), r"channels\[0\].yaw_deg: 'left' is not a finite"),
+    (lambda d: d["channels"][0].pop("width"), r"channels\[0\]: missing key 'width'"),
+    (lambda d: d["channels"].append(3), r"channels\[1\]: 3 is not a table"),
+    (lambda d: d["channels"].append(dict(d["channels"][0], name="d", address="127.0.0.1:4", height=40)),
+     r"channels\[1\].height: 40 differs from channels\[0\].height 48"),
+    (lambda d: d["compositor"].update(address="127.0.0.1:1"),
+     r"compositor.address: '127.0.0.1:1' is already used by host.address"),
+    (lambda d: d["channels"][0].update(address="127.0.0.1:0"), r"channels\[0\].address: '127.0.0.1:0' is not host:port"),
+    (lambda d: d.update(extra=1), r"extra: unknown key"),
+    (lambda d: d.pop("channels"), r"channels: expected at least one"),
 ])
 def test_bad_rig_names_key_and_value(mutate, pattern):
     d = doc()
     mutate(d)
     with pytest.raises(RigError, match=pattern):
         parse_rig(d, source="r.toml")
+
+
+def test_channel_spec_of_a_rig_channel():
+    d = doc()
+    d["channels"][0].update(yaw_deg=60, pitch_deg=-5.0)
+    spec = parse_rig(d).channels[0].spec
+    assert spec == channel_spec("c", width=64, height=48, left_deg=-30.0, right_deg=30.0, bottom_deg=-20.0,
+                                top_deg=20.0, yaw_deg=60.0, pitch_deg=-5.0)
+    assert isinstance(spec.yaw_deg, float) and spec.roll_deg == 0.0
+
+
+def test_with_size_changes_every_channel():
+    rig = load_rig(default_rig_path()).with_size(160, 120)
+    assert {(c.spec.width, c.spec.height) for c in rig.channels} == {(160, 120)}
 
 
 def test_unknown_channel_name():

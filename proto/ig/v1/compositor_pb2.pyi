@@ -49,9 +49,17 @@ class GetCompositorReportRequest(_message.Message):
     def __init__(self) -> None: ...
 
 class GetCompositorReportResponse(_message.Message):
-    __slots__ = ("report_json", "finished")
+    __slots__ = ("report_json", "finished", "frames_published", "frames_complete", "frames_incomplete", "frames_written")
     REPORT_JSON_FIELD_NUMBER: _ClassVar[int]
     FINISHED_FIELD_NUMBER: _ClassVar[int]
+    FRAMES_PUBLISHED_FIELD_NUMBER: _ClassVar[int]
+    FRAMES_COMPLETE_FIELD_NUMBER: _ClassVar[int]
+    FRAMES_INCOMPLETE_FIELD_NUMBER: _ClassVar[int]
+    FRAMES_WRITTEN_FIELD_NUMBER: _ClassVar[int]
     report_json: str
     finished: bool
-    def __init__(self, report_json: _Optional[str] = ..., finished: _Optional[bool] = ...) -> None: ...
+    frames_published: int
+    frames_complete: int
+    frames_incomplete: int
+    frames_written: int
+    def __init__(self, report_json: _Optional[str] = ..., finished: _Optional[bool] = ..., frames_published: _Optional[int] = ..., frames_complete: _Optional[int] = ..., frames_incomplete: _Optional[int] = ..., frames_written: _Optional[int] = ...) -> None: ...

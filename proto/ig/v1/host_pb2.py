@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from ig.v1 import frame_pb2 as ig_dot_v1_dot_frame__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x10ig/v1/host.proto\x12\x05ig.v1\x1a\x11ig/v1/frame.proto\"B\n\x16SubscribeFramesRequest\x12\x12\n\nsubscriber\x18\x01 \x01(\t\x12\x14\n\x0c\x63hannel_name\x18\x02 \x01(\t\"6\n\x17SubscribeFramesResponse\x12\x1b\n\x05\x66rame\x18\x01 \x01(\x0b\x32\x0c.ig.v1.Frame\"X\n\x0f\x41\x63kFrameRequest\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x14\n\x0c\x66rame_number\x18\x02 \x01(\x04\x12\n\n\x02ok\x18\x03 \x01(\x08\x12\r\n\x05\x65rror\x18\x04 \x01(\t\"\x12\n\x10\x41\x63kFrameResponse\"\x16\n\x14GetHostStatusRequest\"\xa0\x04\n\x15GetHostStatusResponse\x12\x0e\n\x06run_id\x18\x01 \x01(\t\x12\x18\n\x10\x66rames_published\x18\x02 \x01(\x04\x12\x1a\n\x12\x65yepoints_rejected\x18\x03 \x01(\x04\x12\x43\n\x0c\x61\x63k_timeouts\x18\x04 \x03(\x0b\x32-.ig.v1.GetHostStatusResponse.AckTimeoutsEntry\x12\x43\n\x0c\x61\x63k_failures\x18\x05 \x03(\x0b\x32-.ig.v1.GetHostStatusResponse.AckFailuresEntry\x12\x41\n\x0bqueue_drops\x18\x06 \x03(\x0b\x32,.ig.v1.GetHostStatusResponse.QueueDropsEntry\x12\x1e\n\x16subscriptions_rejected\x18\x07 \x01(\x04\x12\x13\n\x0bsubscribers\x18\x08 \x03(\t\x12\x10\n\x08\x66inished\x18\t \x01(\x08\x12\x12\n\nlast_error\x18\n \x01(\t\x1a\x32\n\x10\x41\x63kTimeoutsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x32\n\x10\x41\x63kFailuresEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x31\n\x0fQueueDropsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x32\xea\x01\n\x0bHostService\x12R\n\x0fSubscribeFrames\x12\x1d.ig.v1.SubscribeFramesRequest\x1a\x1e.ig.v1.SubscribeFramesResponse0\x01\x12;\n\x08\x41\x63kFrame\x12\x16.ig.v1.AckFrameRequest\x1a\x17.ig.v1.AckFrameResponse\x12J\n\rGetHostStatus\x12\x1b.ig.v1.GetHostStatusRequest\x1a\x1c.ig.v1.GetHostStatusResponseb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x10ig/v1/host.proto\x12\x05ig.v1\x1a\x11ig/v1/frame.proto\"B\n\x16SubscribeFramesRequest\x12\x12\n\nsubscriber\x18\x01 \x01(\t\x12\x14\n\x0c\x63hannel_name\x18\x02 \x01(\t\"6\n\x17SubscribeFramesResponse\x12\x1b\n\x05\x66rame\x18\x01 \x01(\x0b\x32\x0c.ig.v1.Frame\"X\n\x0f\x41\x63kFrameRequest\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x14\n\x0c\x66rame_number\x18\x02 \x01(\x04\x12\n\n\x02ok\x18\x03 \x01(\x08\x12\r\n\x05\x65rror\x18\x04 \x01(\t\"\x12\n\x10\x41\x63kFrameResponse\"\x16\n\x14GetHostStatusRequest\"\x9f\x05\n\x15GetHostStatusResponse\x12\x0e\n\x06run_id\x18\x01 \x01(\t\x12\x18\n\x10\x66rames_published\x18\x02 \x01(\x04\x12\x1a\n\x12\x65yepoints_rejected\x18\x03 \x01(\x04\x12\x43\n\x0c\x61\x63k_timeouts\x18\x04 \x03(\x0b\x32-.ig.v1.GetHostStatusResponse.AckTimeoutsEntry\x12\x43\n\x0c\x61\x63k_failures\x18\x05 \x03(\x0b\x32-.ig.v1.GetHostStatusResponse.AckFailuresEntry\x12\x41\n\x0bqueue_drops\x18\x06 \x03(\x0b\x32,.ig.v1.GetHostStatusResponse.QueueDropsEntry\x12\x1e\n\x16subscriptions_rejected\x18\x07 \x01(\x04\x12\x13\n\x0bsubscribers\x18\x08 \x03(\t\x12\x10\n\x08\x66inished\x18\t \x01(\x08\x12\x12\n\nlast_error\x18\n \x01(\t\x12G\n\x0e\x63hannel_absent\x18\x0b \x03(\x0b\x32/.ig.v1.GetHostStatusResponse.ChannelAbsentEntry\x1a\x32\n\x10\x41\x63kTimeoutsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x32\n\x10\x41\x63kFailuresEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x31\n\x0fQueueDropsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x34\n\x12\x43hannelAbsentEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x32\xea\x01\n\x0bHostService\x12R\n\x0fSubscribeFrames\x12\x1d.ig.v1.SubscribeFramesRequest\x1a\x1e.ig.v1.SubscribeFramesResponse0\x01\x12;\n\x08\x41\x63kFrame\x12\x16.ig.v1.AckFrameRequest\x1a\x17.ig.v1.AckFrameResponse\x12J\n\rGetHostStatus\x12\x1b.ig.v1.GetHostStatusRequest\x1a\x1c.ig.v1.GetHostStatusResponseb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -38,6 +38,8 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_options = b'8\001'
   _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._loaded_options = None
   _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_options = b'8\001'
+  _globals['_GETHOSTSTATUSRESPONSE_CHANNELABSENTENTRY']._loaded_options = None
+  _globals['_GETHOSTSTATUSRESPONSE_CHANNELABSENTENTRY']._serialized_options = b'8\001'
   _globals['_SUBSCRIBEFRAMESREQUEST']._serialized_start=46
   _globals['_SUBSCRIBEFRAMESREQUEST']._serialized_end=112
   _globals['_SUBSCRIBEFRAMESRESPONSE']._serialized_start=114
@@ -49,13 +51,15 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_GETHOSTSTATUSREQUEST']._serialized_start=280
   _globals['_GETHOSTSTATUSREQUEST']._serialized_end=302
   _globals['_GETHOSTSTATUSRESPONSE']._serialized_start=305
-  _globals['_GETHOSTSTATUSRESPONSE']._serialized_end=849
-  _globals['_GETHOSTSTATUSRESPONSE_ACKTIMEOUTSENTRY']._serialized_start=696
-  _globals['_GETHOSTSTATUSRESPONSE_ACKTIMEOUTSENTRY']._serialized_end=746
-  _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_start=748
-  _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_end=798
-  _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_start=800
-  _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_end=849
-  _globals['_HOSTSERVICE']._serialized_start=852
-  _globals['_HOSTSERVICE']._serialized_end=1086
+  _globals['_GETHOSTSTATUSRESPONSE']._serialized_end=976
+  _globals['_GETHOSTSTATUSRESPONSE_ACKTIMEOUTSENTRY']._serialized_start=769
+  _globals['_GETHOSTSTATUSRESPONSE_ACKTIMEOUTSENTRY']._serialized_end=819
+  _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_start=821
+  _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_end=871
+  _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_start=873
+  _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_end=922
+  _globals['_GETHOSTSTATUSRESPONSE_CHANNELABSENTENTRY']._serialized_start=924
+  _globals['_GETHOSTSTATUSRESPONSE_CHANNELABSENTENTRY']._serialized_end=976
+  _globals['_HOSTSERVICE']._serialized_start=979
+  _globals['_HOSTSERVICE']._serialized_end=1213
 # @@protoc_insertion_point(module_scope)

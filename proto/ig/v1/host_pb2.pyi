@@ -42,7 +42,7 @@ class GetHostStatusRequest(_message.Message):
     def __init__(self) -> None: ...
 
 class GetHostStatusResponse(_message.Message):
-    __slots__ = ("run_id", "frames_published", "eyepoints_rejected", "ack_timeouts", "ack_failures", "queue_drops", "subscriptions_rejected", "subscribers", "finished", "last_error")
+    __slots__ = ("run_id", "frames_published", "eyepoints_rejected", "ack_timeouts", "ack_failures", "queue_drops", "subscriptions_rejected", "subscribers", "finished", "last_error", "channel_absent")
     class AckTimeoutsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -64,6 +64,13 @@ class GetHostStatusResponse(_message.Message):
         key: str
         value: int
         def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class ChannelAbsentEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
     RUN_ID_FIELD_NUMBER: _ClassVar[int]
     FRAMES_PUBLISHED_FIELD_NUMBER: _ClassVar[int]
     EYEPOINTS_REJECTED_FIELD_NUMBER: _ClassVar[int]
@@ -74,6 +81,7 @@ class GetHostStatusResponse(_message.Message):
     SUBSCRIBERS_FIELD_NUMBER: _ClassVar[int]
     FINISHED_FIELD_NUMBER: _ClassVar[int]
     LAST_ERROR_FIELD_NUMBER: _ClassVar[int]
+    CHANNEL_ABSENT_FIELD_NUMBER: _ClassVar[int]
     run_id: str
     frames_published: int
     eyepoints_rejected: int
@@ -84,4 +92,5 @@ class GetHostStatusResponse(_message.Message):
     subscribers: _containers.RepeatedScalarFieldContainer[str]
     finished: bool
     last_error: str
-    def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ...) -> None: ...
+    channel_absent: _containers.ScalarMap[str, int]
+    def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ..., channel_absent: _Optional[_Mapping[str, int]] = ...) -> None: ...

@@ -28,9 +28,19 @@ def image(n, channel, *, eyepoint=None, w=4, h=3, value=None):
         eyepoint=eyepoint or eye(n), render_time_s=0.01, control_sample_time_unix_s=100.0 + n, run_id="r")
 
 
-def gatherer():
+class FakeClock:
+    """A monotonic clock the test moves by hand."""
+
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+def gatherer(clock=None, **kw):
     done = []
-    g = FrameGatherer(CHANNELS, done.append, clock=lambda: 100.5)
+    g = FrameGatherer(CHANNELS, done.append, monotonic=clock or FakeClock(), **kw)
     return g, done
 
 
@@ -43,9 +53,9 @@ def test_complete_frame_is_stitched_in_channel_order():
     rgb = stitch(done[0])
     assert rgb.shape == (3, 12, 3)
     np.testing.assert_array_equal(rgb[0, ::4, 0], [0, 1, 2])
+    assert done[0].control_sample_time == 100.0 and done[0].sim_time_s == 0.0
     r = g.report()
-    assert r["frames_complete"] == 1 and r["frames_published"] == 1
-    assert r["control_to_composite_latency"]["p50_ms"] == pytest.approx(500.0)
+    assert r["frames_complete"] == 1 and r["frames_published"] == 1 and r["frames_pending"] == 0
 
 
 def test_images_before_the_host_frame_wait_for_it():
@@ -81,7 +91,65 @@ def test_eyepoint_mismatch_is_never_stitched():
     off.heading_deg = np.nextafter(off.heading_deg, 400.0)  # one ulp is a mismatch
     g.submit(image(0, "right", eyepoint=off))
     assert done == []
-    assert g.report()["frames_incomplete"]["eyepoint_mismatch"] == 1
+    r = g.report()
+    assert r["frames_incomplete"]["eyepoint_mismatch"] == 1
+    assert "channels right rendered another eyepoint" in r["last_incomplete"]
+
+
+def test_negative_zero_is_not_bitwise_equal_to_zero():
+    g, done = gatherer()
+    frame = published(0)
+    frame.eyepoint.roll_deg = 0.0
+    g.on_published(frame)
+    for c in CHANNELS:
+        e = eye(0)
+        e.roll_deg = -0.0 if c == "centre" else 0.0
+        g.submit(image(0, c, eyepoint=e))
+    assert done == [] and g.report()["frames_incomplete"]["eyepoint_mismatch"] == 1
+
+
+def test_an_open_frame_times_out_as_missing_channel():
+    clock = FakeClock()
+    g, done = gatherer(clock, pending_timeout_s=30.0)
+    g.on_published(published(0))
+    g.submit(image(0, "left"))
+    clock.now += 29.0
+    assert g.expire() == 0
+    clock.now += 1.0
+    assert g.expire() == 1
+    r = g.report()
+    assert r["frames_incomplete"]["missing_channel"] == 1 and r["frames_pending"] == 0
+    assert r["last_incomplete"] == "frame 0: missing_channel: missing centre, right"
+    g.submit(image(0, "centre"))
+    assert g.report()["late_images"] == 1 and done == []
+
+
+def test_an_image_of_another_run_is_refused():
+    g, done = gatherer()
+    g.on_published(published(0))
+    stale = image(0, "left")
+    stale.run_id = "old"
+    with pytest.raises(InvalidSubmission, match="run_id: 'old' is not the current run 'r'"):
+        g.submit(stale)
+    assert g.report()["rejected_submissions"] == {"other_run": 1}
+
+
+def test_a_new_run_starts_frame_numbers_again():
+    g, done = gatherer()
+    g.on_published(published(0))
+    for c in CHANNELS:
+        g.submit(image(0, c))
+    g.on_published(published(1))  # left open when the run ends
+    second = published(0)
+    second.run_id = "r2"
+    g.on_published(second)
+    assert g.report()["frames_incomplete"]["missing_channel"] == 1
+    for c in CHANNELS:
+        req = image(0, c)
+        req.run_id = "r2"
+        g.submit(req)
+    assert [f.frame_number for f in done] == [0, 0]
+    assert g.report()["run_id"] == "r2" and g.report()["late_images"] == 0
 
 
 def test_end_of_run_finalises_open_frames():
@@ -120,5 +188,22 @@ def test_wrong_pixel_count_is_refused():
 def test_duplicate_image_is_refused():
     g, _ = gatherer()
     g.submit(image(0, "left"))
-    with pytest.raises(InvalidSubmission, match="already delivered frame 0"):
+    with pytest.raises(InvalidSubmission, match="channel_name: 'left' already delivered frame_number 0"):
         g.submit(image(0, "left"))
+    assert g.report()["rejected_submissions"] == {"duplicate_image": 1}
+
+
+def test_wrong_pixel_format_is_named():
+    g, _ = gatherer()
+    bad = image(0, "left")
+    bad.pixel_format = compositor_pb2.PIXEL_FORMAT_UNSPECIFIED
+    with pytest.raises(InvalidSubmission, match="pixel_format: PIXEL_FORMAT_UNSPECIFIED is not PIXEL_FORMAT_RGB_F16"):
+        g.submit(bad)
+
+
+def test_missing_eyepoint_is_refused():
+    g, _ = gatherer()
+    bad = image(0, "left")
+    bad.ClearField("eyepoint")
+    with pytest.raises(InvalidSubmission, match="eyepoint: missing"):
+        g.submit(bad)

@@ -1,7 +1,6 @@
 """The compositor servicer in an in-process server on port 0."""
 
 import json
-import threading
 
 import grpc
 import numpy as np
@@ -46,10 +45,21 @@ def test_submit_report_health_and_invalid_argument(served, tmp_path):
             stub.SubmitChannelImage(req(0, "zz"), timeout=5)
         assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
         assert "channel_name: 'zz'" in err.value.details()
+        with pytest.raises(grpc.RpcError) as err:
+            stub.SubmitChannelImage(req(0, "a", eyepoint=frame_pb2.Eyepoint(x=1.0, y=float("inf"))), timeout=5)
+        assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert "eyepoint.y: inf is not finite" in err.value.details()
+        progress = stub.GetCompositorReport(compositor_pb2.GetCompositorReportRequest(), timeout=5)
+        assert (progress.frames_published, progress.frames_complete, progress.finished) == (1, 1, False)
         doc = comp.finish(grace_s=1.0)
-        assert doc["frames_complete"] == 1
-        report = json.loads(stub.GetCompositorReport(compositor_pb2.GetCompositorReportRequest(), timeout=5).report_json)
-        assert report["rejected_submissions"] == {"unknown_channel": 1}
+        assert doc["frames_complete"] == 1 and doc["frames_written"] == 1
+        response = stub.GetCompositorReport(compositor_pb2.GetCompositorReportRequest(), timeout=5)
+        report = json.loads(response.report_json)
+        assert response.finished and response.frames_written == 1 and response.frames_incomplete == 0
+        assert report["rejected_submissions"] == {"non_finite_eyepoint": 1, "unknown_channel": 1}
+        with pytest.raises(grpc.RpcError) as err:  # after the report, nothing more is accepted
+            stub.SubmitChannelImage(req(1, "a"), timeout=5)
+        assert err.value.code() == grpc.StatusCode.FAILED_PRECONDITION
     pixels, attrs = read_image(tmp_path / "frames" / "frame_000000.exr")
     assert pixels.shape == (2, 6, 3) and attrs["channels"] == "a,b"
     assert json.loads((tmp_path / "report.json").read_text())["frames_complete"] == 1

@@ -1,0 +1,70 @@
+"""`ig worker`: render one channel of the rig for the host, deliver it to the compositor."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import threading
+
+from services.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error, load_rig_or_report
+
+from .pipeline.samples import pattern_names
+
+log = logging.getLogger("ig.worker")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `ig worker`."""
+    add_rig_arguments(parser)
+    parser.add_argument("--channel", required=True, help="name of the rig channel to render")
+    parser.add_argument("--scene", default=None,
+                        help="scene JSON (docs/scene-format.md); default: the bundled airfield")
+    parser.add_argument("--samples", default="4",
+                        help=f"samples per pixel: a count (1, 2, 4, 8, 16) or a pattern "
+                             f"({', '.join(pattern_names())}); default 4")
+    parser.add_argument("--once", action="store_true",
+                        help="exit when the host's run ends (default: wait for the next run)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Load, warm up, serve and render until the run ends (--once) or SIGTERM.
+
+    Returns 0 ok, 1 cannot listen, 2 bad input (rig, channel, scene, samples, or a host that
+    does not know the channel).
+    """
+    from services.grpc_util import configure_logging, stop_on_signals
+    from services.rig import RigError, bind_address
+
+    from .pipeline.samples import sample_pattern
+    from .pipeline.scene import SceneError, bundled_scene_path, load_scene
+    from .worker import ChannelWorker, serve_worker
+
+    configure_logging(args.verbose)
+    rig = load_rig_or_report(args.rig, "worker")
+    if rig is None:
+        return EXIT_BAD_INPUT
+    try:
+        channel = rig.channel(args.channel)
+        sample_pattern(args.samples)
+        # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
+        database = load_scene(args.scene or bundled_scene_path())
+    except (RigError, SceneError, ValueError) as exc:
+        error("worker", exc)
+        return EXIT_BAD_INPUT
+    # Signals first: a SIGTERM during the warm-up stops the worker right after it.
+    stop = threading.Event()
+    stop_on_signals(stop)
+    worker = ChannelWorker(database, channel.spec, host_address=rig.host_address,
+                           compositor_address=rig.compositor_address, samples=args.samples, once=args.once)
+    log.info("worker %s: compiling kernels", channel.name)
+    worker.warm_up()
+    try:
+        serve_worker(worker, bind_address(channel.address, args.bind), stop)
+    except OSError as exc:
+        error("worker", exc)
+        return EXIT_FAILED
+    if worker.refused:
+        error("worker", f"the host refused channel {channel.name!r}: {worker.refused} "
+                        f"(do host and worker read the same rig file?)")
+        return EXIT_BAD_INPUT
+    return EXIT_OK

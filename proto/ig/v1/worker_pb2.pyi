@@ -1,0 +1,35 @@
+from google.protobuf import descriptor as _descriptor
+from google.protobuf import message as _message
+from typing import ClassVar as _ClassVar, Optional as _Optional
+
+DESCRIPTOR: _descriptor.FileDescriptor
+
+class GetWorkerStatusRequest(_message.Message):
+    __slots__ = ()
+    def __init__(self) -> None: ...
+
+class GetWorkerStatusResponse(_message.Message):
+    __slots__ = ("channel_name", "subscribed", "run_id", "last_frame_number", "frames_handled", "frames_rendered", "frames_skipped", "frames_refused", "submit_failures", "ack_failures", "last_error")
+    CHANNEL_NAME_FIELD_NUMBER: _ClassVar[int]
+    SUBSCRIBED_FIELD_NUMBER: _ClassVar[int]
+    RUN_ID_FIELD_NUMBER: _ClassVar[int]
+    LAST_FRAME_NUMBER_FIELD_NUMBER: _ClassVar[int]
+    FRAMES_HANDLED_FIELD_NUMBER: _ClassVar[int]
+    FRAMES_RENDERED_FIELD_NUMBER: _ClassVar[int]
+    FRAMES_SKIPPED_FIELD_NUMBER: _ClassVar[int]
+    FRAMES_REFUSED_FIELD_NUMBER: _ClassVar[int]
+    SUBMIT_FAILURES_FIELD_NUMBER: _ClassVar[int]
+    ACK_FAILURES_FIELD_NUMBER: _ClassVar[int]
+    LAST_ERROR_FIELD_NUMBER: _ClassVar[int]
+    channel_name: str
+    subscribed: bool
+    run_id: str
+    last_frame_number: int
+    frames_handled: int
+    frames_rendered: int
+    frames_skipped: int
+    frames_refused: int
+    submit_failures: int
+    ack_failures: int
+    last_error: str
+    def __init__(self, channel_name: _Optional[str] = ..., subscribed: _Optional[bool] = ..., run_id: _Optional[str] = ..., last_frame_number: _Optional[int] = ..., frames_handled: _Optional[int] = ..., frames_rendered: _Optional[int] = ..., frames_skipped: _Optional[int] = ..., frames_refused: _Optional[int] = ..., submit_failures: _Optional[int] = ..., ack_failures: _Optional[int] = ..., last_error: _Optional[str] = ...) -> None: ...

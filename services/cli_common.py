@@ -1,0 +1,66 @@
+"""What the `ig` service subcommands share: exit codes, the rig options, logging."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from services.rig import Rig, RigError, default_rig_path, load_rig
+
+#: Exit codes of every `ig` subcommand.
+EXIT_OK = 0
+EXIT_FAILED = 1  # the service ran but could not do its job (address in use, frames lost)
+EXIT_BAD_INPUT = 2  # bad option, rig file or scene: nothing was started
+
+
+def add_rig_arguments(parser: argparse.ArgumentParser, *, bind: bool = True) -> None:
+    """--rig, --verbose and (for services that listen) --bind."""
+    parser.add_argument("--rig", default=None,
+                        help="rig file (docs/rig-format.md); default: the bundled three-channel rig on "
+                             "127.0.0.1 (services/data/default_rig.toml)")
+    if bind:
+        parser.add_argument("--bind", default=None, metavar="ADDR",
+                            help="listen on this interface (e.g. 0.0.0.0) at the port of the rig address, "
+                                 "instead of the rig address itself")
+    parser.add_argument("--verbose", action="store_true", help="log debug messages")
+
+
+def load_rig_or_report(path: str | None, command: str) -> Rig | None:
+    """The rig of --rig (or the default rig); None after printing why it cannot be used."""
+    try:
+        return load_rig(path or default_rig_path())
+    except RigError as exc:
+        error(command, exc)
+        return None
+
+
+def error(command: str, message: object) -> None:
+    """Print an error the way every subcommand does: `ig COMMAND: error: ...` on stderr."""
+    print(f"ig {command}: error: {message}", file=sys.stderr)
+
+
+def positive(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    value = float(text)
+    if not (value > 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"{text} is not a finite number > 0")
+    return value
+
+
+def non_negative(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    value = float(text)
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"{text} is not a finite number >= 0")
+    return value
+
+
+def pixels(text: str) -> int:
+    """argparse type: a whole number of pixels in [1, 16384]."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text} is not a whole number of pixels") from None
+    if not 1 <= value <= 16384:
+        raise argparse.ArgumentTypeError(f"{text} is not in [1, 16384] pixels")
+    return value

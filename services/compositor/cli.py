@@ -1,0 +1,52 @@
+"""`ig compositor`: gather, check and stitch the channels' images; write frames and report.json."""
+
+from __future__ import annotations
+
+import argparse
+import threading
+from pathlib import Path
+
+from services.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error,
+                                 load_rig_or_report, non_negative, positive)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `ig compositor`."""
+    add_rig_arguments(parser)
+    parser.add_argument("--out", default="out/compositor",
+                        help="output directory: frames/frame_NNNNNN.png (and .exr) and report.json "
+                             "(default out/compositor)")
+    parser.add_argument("--exr-every", type=int, default=30,
+                        help="also write a linear half-float EXR every N frames (default 30; 0: never)")
+    parser.add_argument("--pending-timeout", type=positive, default=30.0,
+                        help="a frame still missing images this many seconds after it was published is "
+                             "finalised as incomplete (default 30; keep it above the host's --sync-timeout)")
+    parser.add_argument("--once", action="store_true", help="finish, write report.json and exit when the "
+                                                            "host's run ends (default: on SIGTERM)")
+    parser.add_argument("--grace", type=non_negative, default=5.0,
+                        help="at the end of the run, wait this long for images of open frames, seconds "
+                             "(default 5)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve CompositorService until the run ends (--once) or SIGTERM; 0 ok, 1 failed, 2 bad input."""
+    from services.grpc_util import configure_logging, stop_on_signals
+    from services.rig import bind_address
+
+    from .server import Compositor, serve
+
+    configure_logging(args.verbose)
+    rig = load_rig_or_report(args.rig, "compositor")
+    if rig is None:
+        return EXIT_BAD_INPUT
+    compositor = Compositor(rig.channel_names, Path(args.out), exr_every=args.exr_every,
+                            pending_timeout_s=args.pending_timeout)
+    stop = threading.Event()
+    stop_on_signals(stop)
+    try:
+        serve(compositor, bind_address(rig.compositor_address, args.bind), rig.host_address, stop,
+              once=args.once, grace_s=args.grace)
+    except OSError as exc:
+        error("compositor", exc)
+        return EXIT_FAILED
+    return EXIT_OK

@@ -1,0 +1,74 @@
+"""The host servicer in an in-process server on port 0."""
+
+import threading
+
+import grpc
+import pytest
+
+from channel_worker.pipeline.types import Eyepoint
+from host_sim.publisher import FramePublisher
+from host_sim.server import SERVICE, HostServicer
+from ig.v1 import host_pb2, host_pb2_grpc
+from services.grpc_util import add_health, check_health, make_channel, make_server
+
+
+@pytest.fixture
+def host():
+    pub = FramePublisher(source=lambda t: Eyepoint.of(t, 0.0, 10.0, 0.0, 0.0, 0.0), channels=["left", "right"],
+                         rate_hz=100.0, duration_s=0.05, observers=1, start_timeout_s=60.0)
+    stop = threading.Event()
+    server = make_server()
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub, stop), server)
+    add_health(server, [SERVICE])
+    port = server.add_insecure_port("127.0.0.1:0")
+    server.start()
+    yield pub, stop, f"127.0.0.1:{port}"
+    stop.set()
+    server.stop(0).wait()
+
+
+def test_stream_ack_status_health_and_refusals(host):
+    pub, stop, address = host
+    assert check_health(address) == "SERVING"
+    runner = threading.Thread(target=pub.run, args=(stop,))
+    runner.start()
+    with make_channel(address) as ch:
+        stub = host_pb2_grpc.HostServiceStub(ch)
+        with pytest.raises(grpc.RpcError) as err:
+            next(iter(stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="x", channel_name="middle"),
+                                           timeout=10)))
+        assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert "channel_name: 'middle' is not a channel of the rig (left, right)" in err.value.details()
+
+        got = {}
+
+        def channel(name):
+            frames = []
+            for r in stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber=name, channel_name=name),
+                                          timeout=60):
+                frames.append(r.frame.frame_number)
+                stub.AckFrame(host_pb2.AckFrameRequest(channel_name=name, frame_number=r.frame.frame_number,
+                                                       ok=True), timeout=10)
+            got[name] = frames
+
+        threads = [threading.Thread(target=channel, args=(n,)) for n in ("left", "right")]
+        for t in threads:
+            t.start()
+        observed = [r.frame for r in stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="obs"),
+                                                           timeout=60)]
+        for t in threads:
+            t.join()
+        runner.join()
+        assert [f.frame_number for f in observed] == list(range(pub.tick_count))
+        assert got == {"left": list(range(pub.tick_count)), "right": list(range(pub.tick_count))}
+        assert observed[1].eyepoint.x == pytest.approx(0.01)
+
+        with pytest.raises(grpc.RpcError) as err:
+            stub.AckFrame(host_pb2.AckFrameRequest(channel_name="bogus", frame_number=0), timeout=10)
+        assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT and "'bogus'" in err.value.details()
+
+        status = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=10)
+        assert status.finished and status.frames_published == pub.tick_count
+        assert status.subscriptions_rejected == 1 and "'middle'" in status.last_error
+        assert dict(status.ack_timeouts) == {"left": 0, "right": 0}
+        assert dict(status.channel_absent) == {"left": 0, "right": 0}
