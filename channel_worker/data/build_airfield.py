@@ -9,7 +9,8 @@ channel seams are at +-30 degrees of azimuth from the nose and whose outer edges
 
 - runway 36/18, 2000 x 45 m, along x = 0 from its threshold at y = -1000 to y = +1000, surface at
   z = 0.02 m; white markings (side stripes, centreline, threshold "piano keys", aiming point,
-  touchdown zone) 3 cm above it, at z = 0.05 m;
+  touchdown zone) painted on it: faces of the runway model declared "on" the runway surface
+  with layer 1, in its plane, so they show by layer order at any range with no height offset;
 - east of it a parallel taxiway, an apron, four hangars and a terminal; the hangars cross the
   right seam during the take-off roll, the terminal as the climb ends;
 - west of it the control tower (translucent glass cab), which crosses the left seam during the
@@ -52,11 +53,10 @@ _DECIMALS = 3
 #: A face vertex may lie this far off the face's plane after rounding, metres.
 _PLANE_TOL_M = 1e-3
 
-# Surfaces painted on the ground: the runway, taxiways and apron lie just above the earth plane,
-# the markings a few centimetres above the runway (docs/scene-format.md: the earth is always
-# drawn behind polygons, so only these two heights must be kept apart).
+# Surfaces painted on the ground: the runway, taxiways and apron lie just above the earth plane
+# (docs/scene-format.md: the earth is always drawn behind polygons); markings lie in the plane
+# of the pavement they are painted on and are declared "on" it (layer order, no offset).
 PAVEMENT_Z = 0.02
-MARKING_Z = 0.05
 #: Gap between a wall and a decal painted on it (a door, a window band), metres.
 DECAL_OFFSET_M = 0.05
 
@@ -95,6 +95,9 @@ class Face:
     indices: tuple[int, ...]
     colour: str
     opacity: float = 1.0
+    #: Index, within the model, of the face this one is painted on (scene "on"), and its layer.
+    on: int | None = None
+    layer: int = 1
 
 
 @dataclass(frozen=True)
@@ -213,14 +216,18 @@ def ground_rect(x0: float, x1: float, y0: float, y1: float, z: float, colour: st
                      [Face((0, 1, 2, 3), colour)], facing=(0.0, 0.0, 1.0))
 
 
-def ground_rects(rects: Iterable[tuple[float, float, float, float]], z: float, colour: str) -> Part:
-    """Several disjoint ground rectangles (x0, x1, y0, y1) as one decal part."""
+def ground_rects(rects: Iterable[tuple[float, float, float, float]], z: float, colour: str, *,
+                 on: int | None = None) -> Part:
+    """Several disjoint ground rectangles (x0, x1, y0, y1) as one decal part.
+
+    on: the model face they are painted on (layer 1 above it), or None for a base surface.
+    """
     vertices: list[Vec3] = []
     faces = []
     for x0, x1, y0, y1 in rects:
         base = len(vertices)
         vertices += [(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)]
-        faces.append(Face((base, base + 1, base + 2, base + 3), colour))
+        faces.append(Face((base, base + 1, base + 2, base + 3), colour, on=on))
     return make_part(vertices, faces, facing=(0.0, 0.0, 1.0))
 
 
@@ -323,24 +330,27 @@ def dome(rings: Sequence[Sequence[Vec3]], apex: Vec3, colours: Sequence[str]) ->
 # Models (model frame: x right, y forward, z up; the front of a building faces +y).
 
 def runway() -> list[Part]:
-    """The paved runway, x -22.5..22.5, y -1000..1000, with its side stripes."""
+    """The paved runway, x -22.5..22.5, y -1000..1000 (face 0), and every marking painted on it."""
     half_w, half_l = RUNWAY_WIDTH_M / 2.0, RUNWAY_LENGTH_M / 2.0
     side = [(-half_w + 0.3, -half_w + 1.2, -half_l, half_l),
             (half_w - 1.2, half_w - 0.3, -half_l, half_l)]
+    ends = runway_end_markings()
+    # The 18 end is the 36 end turned half a turn about the runway centre.
+    rects = side + runway_centreline() + [(x0, x1, y0 - half_l, y1 - half_l) for x0, x1, y0, y1 in ends]
+    rects += [(-x1, -x0, half_l - y1, half_l - y0) for x0, x1, y0, y1 in ends]
     return [ground_rect(-half_w, half_w, -half_l, half_l, PAVEMENT_Z, ASPHALT),
-            ground_rects(side, MARKING_Z, PAINT_WHITE)]
+            ground_rects(rects, PAVEMENT_Z, PAINT_WHITE, on=0)]
 
 
-def runway_centreline() -> list[Part]:
+def runway_centreline() -> list[tuple[float, float, float, float]]:
     """Centreline dashes, 30 m painted and 20 m gap, 0.9 m wide, clear of the end markings."""
     dash, gap, usable = 30.0, 20.0, 1780.0
     n = int((usable + gap) // (dash + gap))
     y0 = -(n * (dash + gap) - gap) / 2.0
-    rects = [(-0.45, 0.45, y0 + k * (dash + gap), y0 + k * (dash + gap) + dash) for k in range(n)]
-    return [ground_rects(rects, MARKING_Z, PAINT_WHITE)]
+    return [(-0.45, 0.45, y0 + k * (dash + gap), y0 + k * (dash + gap) + dash) for k in range(n)]
 
 
-def runway_end_markings() -> list[Part]:
+def runway_end_markings() -> list[tuple[float, float, float, float]]:
     """Markings of one runway end; the origin is the threshold centre, +y points down the runway.
 
     Threshold stripes (12 for a 45 m runway), aiming point at 300 m and touchdown-zone bars at
@@ -355,7 +365,7 @@ def runway_end_markings() -> list[Part]:
         for b in range(bars):
             x = 9.0 + 3.3 * b
             rects += [(x, x + 1.8, y, y + 22.5), (-x - 1.8, -x, y, y + 22.5)]
-    return [ground_rects(rects, MARKING_Z, PAINT_WHITE)]
+    return rects
 
 
 def taxiways() -> list[Part]:
@@ -364,11 +374,16 @@ def taxiways() -> list[Part]:
     x_tw0, x_tw1 = TAXIWAY_X_M - hw, TAXIWAY_X_M + hw
     stubs = [(RUNWAY_WIDTH_M / 2.0, x_tw0, y - hw, y + hw) for y in (-950.0, 0.0, 950.0)]
     paving = [(x_tw0, x_tw1, -950.0 - hw, 950.0 + hw)] + stubs + [(x_tw1, 200.0, -510.0, -60.0)]
-    lines = [(TAXIWAY_X_M - 0.15, TAXIWAY_X_M + 0.15, -950.0, 950.0)]
-    lines += [(RUNWAY_WIDTH_M / 2.0 + 5.0, TAXIWAY_X_M - 0.15, y - 0.15, y + 0.15)
-              for y in (-950.0, 0.0, 950.0)]
-    return [ground_rects(paving, PAVEMENT_Z, CONCRETE),
-            ground_rects(lines, MARKING_Z, PAINT_YELLOW)]
+    # Yellow lines, each painted on the one paving face (0: the taxiway, 1-3: the stubs) it lies
+    # on; a stub's line is cut where the stub meets the taxiway.
+    on_taxiway = [(TAXIWAY_X_M - 0.15, TAXIWAY_X_M + 0.15, -950.0, 950.0)]
+    on_taxiway += [(x_tw0, TAXIWAY_X_M - 0.15, y - 0.15, y + 0.15) for y in (-950.0, 0.0, 950.0)]
+    parts = [ground_rects(paving, PAVEMENT_Z, CONCRETE),
+             ground_rects(on_taxiway, PAVEMENT_Z, PAINT_YELLOW, on=0)]
+    for k, y in enumerate((-950.0, 0.0, 950.0)):
+        parts.append(ground_rects([(RUNWAY_WIDTH_M / 2.0 + 5.0, x_tw0, y - 0.15, y + 0.15)],
+                                  PAVEMENT_Z, PAINT_YELLOW, on=1 + k))
+    return parts
 
 
 def gable_building(width: float, depth: float, eaves: float, ridge: float, walls: str, roof: str,
@@ -497,8 +512,6 @@ def build_models() -> dict[str, list[Part]]:
     """Every model of the scene as its parts, in file order."""
     models: dict[str, list[Part]] = {
         "runway": runway(),
-        "runway_centreline": runway_centreline(),
-        "runway_end_markings": runway_end_markings(),
         "taxiways": taxiways(),
         "hangar": gable_building(40.0, 50.0, 12.0, 17.0, METAL_WALL, METAL_ROOF,
                                  door=(32.0, 10.0, DOOR)),
@@ -547,10 +560,6 @@ def build_instances() -> list[Instance]:
     """Every instance of the scene, in file order."""
     out = [
         Instance("runway", (0.0, 0.0, 0.0), "runway 36/18"),
-        Instance("runway_centreline", (0.0, 0.0, 0.0), "runway centreline"),
-        Instance("runway_end_markings", (0.0, -1000.0, 0.0), "runway 36 threshold"),
-        Instance("runway_end_markings", (0.0, 1000.0, 0.0), "runway 18 threshold",
-                 (180.0, 0.0, 0.0)),
         Instance("taxiways", (0.0, 0.0, 0.0), "taxiway A and apron"),
     ]
     # East side; building fronts face west, towards the runway (heading 270).
@@ -661,6 +670,9 @@ def _model_doc(parts: Sequence[Part]) -> dict[str, Any]:
             face: dict[str, Any] = {"indices": [base + i for i in f.indices], "colour": f.colour}
             if f.opacity != 1.0:
                 face["opacity"] = f.opacity
+            if f.on is not None:
+                face["on"] = f.on
+                face["layer"] = f.layer
             faces.append(face)
     return {"vertices": vertices, "faces": faces}
 

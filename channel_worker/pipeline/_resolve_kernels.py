@@ -1,4 +1,4 @@
-"""numba kernel for the box resolve (see resolve.py)."""
+"""numba kernels for the resolve stage (see resolve.py)."""
 
 from __future__ import annotations
 
@@ -10,40 +10,114 @@ from numba import njit, prange
 from .types import EARTH_ID, SKY_ID
 
 
-@njit(cache=True, parallel=True)
-def box_resolve_kernel(colour, inv_z, feature, tx, ty, dz_row, height_above, out_rgb, out_range):
-    """Average the samples of each pixel; range is that of the nearest sample in the pixel.
+@njit(cache=True, inline="always")
+def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth):
+    """Linear RGB of one sample: its translucent features front to back over the opaque one."""
+    r = np.float32(0.0)
+    g = np.float32(0.0)
+    b = np.float32(0.0)
+    through = np.float32(1.0)
+    for q in range(count[y, x, s]):
+        p = trans[y, x, s, q]
+        a = opacity[p] * through
+        r += a * colour[p, 0]
+        g += a * colour[p, 1]
+        b += a * colour[p, 2]
+        through *= np.float32(1.0) - opacity[p]
+    f = opaque[y, x, s]
+    if f >= 0:
+        return r + through * colour[f, 0], g + through * colour[f, 1], b + through * colour[f, 2]
+    if f == EARTH_ID:
+        return r + through * earth[0], g + through * earth[1], b + through * earth[2]
+    return r + through * sky[0], g + through * sky[1], b + through * sky[2]
 
-    tx[x, s], ty[y, s]: the eye-space ray (tx, ty, 1) of sample s of pixel column x / row y.
-    Range along a ray: a polygon at 1/z = iz is at |(tx, ty, 1)| / iz (iz > 0: polygons are
-    clipped to z >= near); the earth is where the ray meets the plane height_above below the
-    eye, |(tx, ty, 1)| * height_above / -dz (dz < 0 for every earth sample, as the horizon
-    stage decided); the sky is at +inf.
+
+@njit(cache=True, inline="always")
+def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above):
+    """Nearest surface seen by the pixel: its nearest polygon or, nearer, the earth plane.
+
+    Range to the earth along the ray (tx, ty, 1): |ray| * height_above / -dz; dz < 0 for
+    every earth sample (visibility decided so), so the division is safe.
     """
-    h, w, s_count = inv_z.shape
+    nearest = polygon_range[y, x]
+    for s in range(opaque.shape[2]):
+        if opaque[y, x, s] == EARTH_ID:
+            a = tx[x, s]
+            c = ty[y, s]
+            dz = dz_row[0] * a + dz_row[1] * c + dz_row[2]
+            nearest = min(nearest, math.sqrt(a * a + c * c + 1.0) * height_above / -dz)
+    return nearest
+
+
+@njit(cache=True, parallel=True)
+def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
+               height_above, out_rgb, out_range):
+    """Shade and average the samples of each pixel in one pass (no sample colour buffer)."""
+    h, w, s_count = opaque.shape
     inv_s = np.float32(1.0 / s_count)
     for y in prange(h):
         for x in range(w):
             r = np.float32(0.0)
             g = np.float32(0.0)
             b = np.float32(0.0)
-            nearest = np.inf
             for s in range(s_count):
-                r += colour[y, x, s, 0]
-                g += colour[y, x, s, 1]
-                b += colour[y, x, s, 2]
-                f = feature[y, x, s]
-                if f == SKY_ID:
-                    continue
-                a = tx[x, s]
-                c = ty[y, s]
-                norm = math.sqrt(a * a + c * c + 1.0)
-                if f == EARTH_ID:
-                    dist = norm * height_above / -(dz_row[0] * a + dz_row[1] * c + dz_row[2])
-                else:
-                    dist = norm / inv_z[y, x, s]
-                nearest = min(nearest, dist)
+                sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth)
+                r += sr
+                g += sg
+                b += sb
             out_rgb[y, x, 0] = r * inv_s
             out_rgb[y, x, 1] = g * inv_s
             out_rgb[y, x, 2] = b * inv_s
-            out_range[y, x] = nearest
+            out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above)
+
+
+@njit(cache=True, parallel=True)
+def shade_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
+                 height_above, out_samples, out_range):
+    """Every sample's colour, for filters that also read neighbouring pixels' samples."""
+    h, w, s_count = opaque.shape
+    for y in prange(h):
+        for x in range(w):
+            for s in range(s_count):
+                sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth)
+                out_samples[y, x, s, 0] = sr
+                out_samples[y, x, s, 1] = sg
+                out_samples[y, x, s, 2] = sb
+            out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above)
+
+
+@njit(cache=True, parallel=True)
+def filter_kernel(samples, weights, out_rgb):
+    """Weighted sum of the samples of the (2R+1)^2 pixels around each pixel.
+
+    weights[j, i, s]: weight of sample s of the pixel at offset (i - R, j - R). At the raster
+    border the missing neighbours' weights are left out and the rest renormalised; the
+    centre pixel's own weights are positive for every filter, so the sum is never zero.
+    """
+    h, w, s_count, _ = samples.shape
+    radius = weights.shape[0] // 2
+    for y in prange(h):
+        for x in range(w):
+            r = 0.0
+            g = 0.0
+            b = 0.0
+            total = 0.0
+            for j in range(-radius, radius + 1):
+                yy = y + j
+                if yy < 0 or yy >= h:
+                    continue
+                for i in range(-radius, radius + 1):
+                    xx = x + i
+                    if xx < 0 or xx >= w:
+                        continue
+                    for s in range(s_count):
+                        wt = weights[j + radius, i + radius, s]
+                        if wt == 0.0:
+                            continue
+                        r += wt * samples[yy, xx, s, 0]
+                        g += wt * samples[yy, xx, s, 1]
+                        b += wt * samples[yy, xx, s, 2]
+                        total += wt
+            out_rgb[y, x, 0] = r / total
+            out_rgb[y, x, 1] = g / total
+            out_rgb[y, x, 2] = b / total

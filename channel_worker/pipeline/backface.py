@@ -31,12 +31,5 @@ def select(polys: Polygons, keep: np.ndarray) -> Polygons:
     counts = np.diff(polys.start)[idx]
     start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     vidx = index_ranges(polys.start[idx], counts)
-    return type(polys)(
-        verts=polys.verts[vidx],
-        start=start,
-        colour=polys.colour[idx],
-        opacity=polys.opacity[idx],
-        feature_id=polys.feature_id[idx],
-        plane=polys.plane[idx],
-    )
+    return polys.take(idx, polys.verts[vidx], start)
 

@@ -36,11 +36,4 @@ def clip(polys: Polygons, view: View) -> Polygons:
     n_out, v_out = clip_kernel(np.ascontiguousarray(polys.verts), polys.start, planes,
                                out_verts, out_start, out_src)
     src = out_src[:n_out]
-    return Polygons(
-        verts=out_verts[:v_out],
-        start=out_start[:n_out + 1].copy(),
-        colour=polys.colour[src],
-        opacity=polys.opacity[src],
-        feature_id=polys.feature_id[src],
-        plane=polys.plane[src],
-    )
+    return polys.take(src, out_verts[:v_out], out_start[:n_out + 1].copy())

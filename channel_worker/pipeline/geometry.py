@@ -115,7 +115,11 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
 
     sizes = table.face_size[face_rows]
     start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    d = np.einsum("ij,ij->i", normal, eye_verts[start[:-1]])
+    # The plane offset comes from the face's plane point (its own first vertex, or that of the
+    # face it lies on), transformed exactly like the vertices, so coplanar faces of one
+    # instance get bit-identical planes and their depth ties are decided by layer alone.
+    plane_pt = np.einsum("nij,nj->ni", to_eye_rot[face_inst], table.plane_xyz[face_rows]) + rel[face_inst]
+    d = np.einsum("ij,ij->i", normal, plane_pt)
     ids = database.instance_face_base[draws.instance_index][face_inst] + table.local_face[face_rows]
     return Polygons(
         verts=eye_verts,
@@ -124,6 +128,7 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
         opacity=table.opacity[face_rows],
         feature_id=ids.astype(np.int32),
         plane=np.column_stack([normal, d]),
+        layer=table.layer[face_rows],
     )
 
 

@@ -1,33 +1,21 @@
-"""Horizon synthesis: the sky and the flat earth plane behind every feature."""
+"""Horizon geometry: where the flat earth plane meets the sky on the screen.
+
+The earth is an infinite plane at database.earth_height behind every feature; its horizon is
+where the world-z component of a sample's ray changes sign, a straight line on the screen at
+any roll. The visibility stages give a sample no polygon covers to the earth where that
+component is negative, to the sky elsewhere.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ._horizon_kernels import horizon_kernel
 from .project import screen_mapping
-from .types import Database, SampleBuffer, View
+from .types import Database, View
 
 #: An eye at or below the earth plane is treated as this high above it (metres), so the picture
 #: stays defined (earth below the horizon line) instead of flipping or dividing by zero.
 MIN_HEIGHT_ABOVE_EARTH = 0.01
-
-
-def synthesize_horizon(database: Database, view: View, offsets: np.ndarray) -> SampleBuffer:
-    """A new sample buffer with every sample set to sky or earth.
-
-    The earth is an infinite plane at database.earth_height; its horizon is where the ray's world
-    z component changes sign, which is a straight line on the screen at any roll. Samples keep
-    1/z = 0 so that any polygon in front passes the depth test.
-    """
-    h, w, s = view.height, view.width, offsets.shape[0]
-    colour = np.empty((h, w, s, 3), np.float32)
-    inv_z = np.empty((h, w, s), np.float32)
-    feature = np.empty((h, w, s), np.int32)
-    kx, ky, k0 = earth_dz_screen(view)
-    horizon_kernel(offsets, kx, ky, k0, database.sky_colour, database.earth_colour, colour,
-                   inv_z, feature)
-    return SampleBuffer(colour=colour, inv_z=inv_z, feature=feature, offsets=offsets)
 
 
 def earth_dz_row(view: View) -> np.ndarray:

@@ -49,4 +49,5 @@ def project(polys: Polygons, view: View) -> ScreenPolygons:
         colour=polys.colour[src],
         opacity=polys.opacity[src],
         feature_id=polys.feature_id[src],
+        layer=polys.layer[src],
     )

@@ -7,34 +7,56 @@ from contextlib import contextmanager
 from typing import Iterator
 
 from .backface import eliminate_backfaces
+from .binning import DEFAULT_SUBAREA, bin_features
 from .clip import clip
 from .cull import cull
+from .edges import setup_edges
 from .geometry import make_view, to_eye
-from .horizon import synthesize_horizon
 from .project import project
-from .raster import rasterize
-from .resolve import resolve
+from .resolve import check_filter, resolve
 from .samples import sample_pattern
 from .types import ChannelSpec, Database, Eyepoint, Image, StageTimes
+from .visibility import DEFAULT_MAX_TRANSLUCENT, check_max_translucent, resolve_visibility
+
+#: Visibility renderers by name: "subarea" is the sub-area, multi-sample renderer (seed 000);
+#: "scanline" the scan-line hidden-surface algorithm of seed 003, one sample per pixel centre,
+#: kept as an independent cross-check.
+RENDERERS = ("subarea", "scanline")
 
 
 def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *,
-                 samples: int | str = 4, times: StageTimes | None = None) -> Image:
+                 samples: int | str = 4, renderer: str = "subarea", filter: str = "box",
+                 subarea: int = DEFAULT_SUBAREA, max_translucent: int = DEFAULT_MAX_TRANSLUCENT,
+                 times: StageTimes | None = None, trace: dict | None = None) -> Image:
     """Render one channel's view of the database from the eyepoint.
 
     Args:
         database: the loaded scene.
         channel: the channel's offset, frustum and raster size.
         eyepoint: world position (metres, float64) and attitude (degrees).
-        samples: sample pattern name or count (see samples.py).
+        samples: sample pattern name or count (samples.py); the scanline renderer takes only
+            "centre" (1).
+        renderer: name in RENDERERS.
+        filter: reconstruction filter name (resolve.FILTERS).
+        subarea: sub-area edge length, pixels (binning.py).
+        max_translucent: translucent features kept per sample (visibility.py).
         times: if given, receives the seconds spent in each stage.
+        trace: if given, receives the frame's "screen" polygons and sample "buffer".
 
     Raises:
-        ValueError: a non-finite eyepoint field, an impossible channel, an unknown pattern;
-            the message names the field and value.
+        ValueError: a non-finite eyepoint field, an impossible channel, an unknown pattern,
+            renderer or filter, a bad sub-area size or store size; the message names the
+            field and value.
     """
-    clock = _Clock(times)
     offsets = sample_pattern(samples)
+    if renderer not in RENDERERS:
+        raise ValueError(f"renderer: unknown renderer {renderer!r}; known: {', '.join(RENDERERS)}")
+    if renderer == "scanline" and offsets.shape[0] != 1:
+        raise ValueError(f"samples: the scanline renderer samples pixel centres only "
+                         f"(\"centre\"), got {samples!r}")
+    check_filter(filter)
+    check_max_translucent(max_translucent)
+    clock = _Clock(times)
     with clock("view"):
         view = make_view(channel, eyepoint)
     with clock("cull"):
@@ -47,12 +69,22 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
         polys = clip(polys, view)
     with clock("project"):
         screen = project(polys, view)
-    with clock("horizon"):
-        buffer = synthesize_horizon(database, view, offsets)
-    with clock("raster"):
-        buffer = rasterize(screen, buffer)
+    if renderer == "subarea":
+        with clock("edges"):
+            edges = setup_edges(screen, view.width, view.height)
+        with clock("binning"):
+            bins = bin_features(edges, screen.start, view.width, view.height, subarea)
+        with clock("visibility"):
+            buffer = resolve_visibility(screen, edges, bins, view, offsets, max_translucent)
+    else:
+        from .scanline import scanline_visibility  # TEMP until helper lands
+        with clock("scanline"):
+            buffer = scanline_visibility(screen, view, database, max_translucent=max_translucent)
     with clock("resolve"):
-        image = resolve(buffer, view, database)
+        image = resolve(buffer, screen, view, database, filter)
+    if trace is not None:
+        trace["screen"] = screen
+        trace["buffer"] = buffer
     return image
 
 

@@ -1,27 +1,87 @@
-"""Resolve sample outputs to pixels."""
+"""Resolve: shade every sample from the features it sees and filter samples into pixels."""
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
-from ._resolve_kernels import box_resolve_kernel
+from ._resolve_kernels import box_kernel, filter_kernel, shade_kernel
 from .horizon import earth_dz_row, height_above_earth
 from .project import screen_mapping
-from .types import Database, Image, SampleBuffer, View
+from .types import Database, Image, SampleBuffer, ScreenPolygons, View
 
 
-def resolve(buffer: SampleBuffer, view: View, database: Database) -> Image:
-    """Box-filter the samples of each pixel into its colour; the pixel's range is the nearest.
+def _box(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    return ((np.abs(dx) < 0.5) & (np.abs(dy) < 0.5)).astype(np.float64)
+
+
+def _tent(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    return np.maximum(0.0, 1.0 - np.abs(dx)) * np.maximum(0.0, 1.0 - np.abs(dy))
+
+
+def _gaussian(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+    r2 = dx * dx + dy * dy
+    return np.where(r2 <= 1.5 ** 2, np.exp(-r2 / (2.0 * 0.5 ** 2)), 0.0)
+
+
+#: Reconstruction filters by name: weight of a sample at (dx, dy) pixels from the pixel centre.
+#: box: the pixel's own samples, equal weights (the seed's pixel output); tent: bilinear,
+#: radius 1 pixel; gaussian: sigma 0.5 pixel, cut at 1.5. The wider two also read the samples
+#: of the 8 neighbouring pixels: softer edges, less crawling on thin features.
+FILTERS: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
+    "box": _box,
+    "tent": _tent,
+    "gaussian": _gaussian,
+}
+
+
+def check_filter(name: str) -> str:
+    """The name if registered, else ValueError naming it and the known ones."""
+    if name not in FILTERS:
+        raise ValueError(f"filter: unknown filter {name!r}; known: {', '.join(sorted(FILTERS))}")
+    return name
+
+
+def filter_weights(name: str, offsets: np.ndarray) -> np.ndarray:
+    """(3, 3, S) weights of sample s of the pixel at offset (i - 1, j - 1), index [j, i, s]."""
+    check_filter(name)
+    d = np.arange(-1, 2, dtype=np.float64)
+    dx = d[None, :, None] + offsets[None, None, :, 0] - 0.5
+    dy = d[:, None, None] + offsets[None, None, :, 1] - 0.5
+    return FILTERS[name](dx, dy)
+
+
+def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: Database,
+            filter: str = "box") -> Image:
+    """Pixel colours from the sample store and the pixel's nearest range.
+
+    A sample's colour is its translucent features, nearest first, each covering opacity of
+    what is behind it, over the nearest opaque feature (or the sky or earth).
+
+    Args:
+        buffer: the sample store (visibility stage).
+        screen: the frame's polygons the store refers to.
+        view, database: for the sky, the earth plane and the sample rays.
+        filter: name in FILTERS.
 
     Returns:
         Image with linear RGB and range in metres (+inf where every sample sees sky).
     """
+    check_filter(filter)
     h, w = view.height, view.width
     rgb = np.empty((h, w, 3), np.float32)
     range_m = np.empty((h, w), np.float32)
     sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
     tx = (np.arange(w)[:, None] + buffer.offsets[None, :, 0] - sx_off) / sx_scale
     ty = (np.arange(h)[:, None] + buffer.offsets[None, :, 1] - sy_off) / sy_scale
-    box_resolve_kernel(buffer.colour, buffer.inv_z, buffer.feature, tx, ty, earth_dz_row(view),
-                       height_above_earth(database, view), rgb, range_m)
+    args = (buffer.opaque, buffer.translucent, buffer.translucent_count, buffer.polygon_range,
+            screen.colour, screen.opacity, database.sky_colour, database.earth_colour, tx, ty,
+            earth_dz_row(view), height_above_earth(database, view))
+    if filter == "box":
+        box_kernel(*args, rgb, range_m)
+    else:
+        samples = np.empty(buffer.opaque.shape + (3,), np.float32)
+        shade_kernel(*args, samples, range_m)
+        filter_kernel(samples, filter_weights(filter, buffer.offsets), rgb)
     return Image(rgb=rgb, range_m=range_m)

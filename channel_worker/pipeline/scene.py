@@ -158,9 +158,10 @@ class _Parser:
         if not isinstance(faces, list) or not faces:
             raise self.fail(f"{where}.faces", f"expected a non-empty list, got {_show(faces)}")
         start, flat, colours, opacity, normals = [0], [], [], [], []
+        layers, plane_vertex = [], []
         for k, face in enumerate(faces):
             fwhere = f"{where}.faces[{k}]"
-            face = self.obj(face, fwhere, {"indices", "colour"}, {"opacity"})
+            face = self.obj(face, fwhere, {"indices", "colour"}, {"opacity", "on", "layer"})
             idx = face["indices"]
             if not isinstance(idx, list) or len(idx) < 3:
                 raise self.fail(f"{fwhere}.indices", f"expected at least 3 vertex indices, got {_show(idx)}")
@@ -177,12 +178,49 @@ class _Parser:
             opacity.append(self.number(face.get("opacity", 1.0), f"{fwhere}.opacity", 0.0, 1.0))
             if opacity[-1] == 0.0:
                 raise self.fail(f"{fwhere}.opacity", "0 makes the face invisible; remove it instead")
+            layer, pv = self.face_layer(face, k, layers, flat, start, vertices, normals, fwhere)
+            layers.append(layer)
+            plane_vertex.append(pv)
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         centre = (lo + hi) / 2.0
         radius = float(np.sqrt(((vertices - centre) ** 2).sum(axis=1)).max())
         return Model(name, vertices, np.array(start, np.int64), np.array(flat, np.int64),
                      np.array(colours, np.float32), np.array(opacity, np.float32),
-                     np.array(normals), centre, radius)
+                     np.array(normals), centre, radius, np.array(layers, np.int16),
+                     np.array(plane_vertex, np.int64))
+
+    def face_layer(self, face: dict, k: int, layers: list, flat: list, start: list,
+                   vertices: np.ndarray, normals: list, where: str) -> tuple[int, int]:
+        """(layer, plane vertex) of face k; a face "on" another takes over its plane.
+
+        The face's normal (normals[k]) is replaced by the base face's so that both transform
+        to the same eye-space plane bit for bit (geometry.to_eye).
+        """
+        own_first = flat[start[k]]
+        if "on" not in face:
+            if "layer" in face:
+                raise self.fail(f"{where}.layer", "a layer needs \"on\": the index of the face it lies on")
+            return 0, own_first
+        base = face["on"]
+        if isinstance(base, bool) or not isinstance(base, int) or not 0 <= base < k:
+            raise self.fail(f"{where}.on", f"expected the index of an earlier face of this model "
+                                           f"(0..{k - 1}), got {_show(base)}")
+        layer = face.get("layer", 1)
+        if isinstance(layer, bool) or not isinstance(layer, int) or not 1 <= layer <= 1000:
+            raise self.fail(f"{where}.layer", f"expected an integer in 1..1000, got {_show(layer)}")
+        if layer <= layers[base]:
+            raise self.fail(f"{where}.layer", f"{layer} must be above the layer of face {base} ({layers[base]})")
+        n = normals[base]
+        p0 = vertices[flat[start[base]]]
+        pts = vertices[flat[start[k]:start[k + 1]]]
+        off = float(np.abs((pts - p0) @ n).max())
+        size = float(np.ptp(pts, axis=0).max())
+        if off > 1e-3 + 1e-3 * size:
+            raise self.fail(f"{where}.on", f"the face is not on face {base} (a vertex lies {off:.4g} m off its plane)")
+        if float(normals[k] @ n) <= 0.0:
+            raise self.fail(f"{where}.on", f"the face faces away from face {base}")
+        normals[k] = n
+        return layer, flat[start[base]]
 
     def face_normal(self, pts: np.ndarray, where: str) -> np.ndarray:
         """Newell normal of a face; checks it is planar and strictly convex."""

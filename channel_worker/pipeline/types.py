@@ -128,7 +128,10 @@ class Polygons:
         opacity: (N,) float32; 1 is opaque.
         feature_id: (N,) int32 identity of the source face (see Database.face_names).
         plane: (N, 4) float64 eye-space plane (nx, ny, nz, d) with n . p = d, n pointing
-            towards the eye; used to interpolate depth exactly.
+            towards the eye; used to interpolate depth exactly. Faces declared to lie on
+            another face (scene "on") carry that face's plane bit for bit.
+        layer: (N,) int16 declared layer; where two features are at exactly the same depth
+            (coplanar, sharing one plane) the higher layer is seen. None means all 0.
     """
 
     verts: np.ndarray
@@ -137,6 +140,17 @@ class Polygons:
     opacity: np.ndarray
     feature_id: np.ndarray
     plane: np.ndarray
+    layer: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.layer is None:
+            object.__setattr__(self, "layer", np.zeros(self.start.shape[0] - 1, np.int16))
+
+    def take(self, idx: np.ndarray, verts: np.ndarray, start: np.ndarray) -> "Polygons":
+        """New polygons with the given vertices and the attributes of polygons idx."""
+        return Polygons(verts=verts, start=start, colour=self.colour[idx],
+                        opacity=self.opacity[idx], feature_id=self.feature_id[idx],
+                        plane=self.plane[idx], layer=self.layer[idx])
 
     @property
     def count(self) -> int:
@@ -152,7 +166,7 @@ class ScreenPolygons:
         start: (N + 1,) int64 offsets into fixed.
         inv_z: (N, 3) float64 (A, B, C) with 1/z = A * sx + B * sy + C at screen point (sx, sy)
             in pixels, z the eye-space depth in metres.
-        colour, opacity, feature_id: as in Polygons.
+        colour, opacity, feature_id, layer: as in Polygons.
     """
 
     fixed: np.ndarray
@@ -161,6 +175,11 @@ class ScreenPolygons:
     colour: np.ndarray
     opacity: np.ndarray
     feature_id: np.ndarray
+    layer: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.layer is None:
+            object.__setattr__(self, "layer", np.zeros(self.start.shape[0] - 1, np.int16))
 
     @property
     def count(self) -> int:
@@ -169,19 +188,34 @@ class ScreenPolygons:
 
 @dataclass(frozen=True)
 class SampleBuffer:
-    """Per-sample results of visibility.
+    """Per-sample visibility: which features every sample sees, nearest first.
+
+    The store holds identities, not colours: the resolve stage shades each sample from the
+    identities (so a sample costs 4 bytes when no translucent feature covers it).
 
     Attributes:
-        colour: (H, W, S, 3) float32 linear RGB.
-        inv_z: (H, W, S) float32; 1/z of the visible polygon, 0 where only sky or earth.
-        feature: (H, W, S) int32 feature id, SKY_ID or EARTH_ID.
         offsets: (S, 2) float64 sample positions inside the pixel, pixels from its top-left.
+        opaque: (H, W, S) int32 index into the frame's ScreenPolygons of the nearest opaque
+            polygon covering the sample, or SKY_ID / EARTH_ID where none does.
+        translucent: (H, W, S, K) int32 indices of the translucent polygons nearer than the
+            opaque one, nearest first; only the first translucent_count entries are meaningful.
+        translucent_count: (H, W, S) uint8, at most K.
+        polygon_range: (H, W) float32 distance from the eye (metres) to the nearest opaque
+            polygon seen by any sample of the pixel; +inf where no sample sees a polygon.
+        stats: counters of the visibility stage (e.g. "translucent_overflow": samples where more
+            than K translucent features were nearer than the opaque one and the farthest of them
+            were dropped; "subareas_full", "subareas_partial": sub-area/feature pairs by class).
     """
-
-    colour: np.ndarray
-    inv_z: np.ndarray
-    feature: np.ndarray
     offsets: np.ndarray
+    opaque: np.ndarray
+    translucent: np.ndarray
+    translucent_count: np.ndarray
+    polygon_range: np.ndarray
+    stats: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def max_translucent(self) -> int:
+        return int(self.translucent.shape[3])
 
 
 @dataclass(frozen=True)
@@ -222,6 +256,10 @@ class Model:
         opacity: (F,) float32.
         normal: (F, 3) float64 unit outward normals.
         centre: (3,) float64 bounding-sphere centre; radius: its radius, metres.
+        layer: (F,) int16 declared layer (0 unless the face lies on another face).
+        plane_vertex: (F,) int64 vertex whose position fixes the face's plane offset: its own
+            first vertex, or the first vertex of the face it lies on, so that coplanar faces
+            share one plane bit for bit.
     """
 
     name: str
@@ -233,6 +271,14 @@ class Model:
     normal: np.ndarray
     centre: np.ndarray
     radius: float
+    layer: np.ndarray | None = None
+    plane_vertex: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.layer is None:
+            object.__setattr__(self, "layer", np.zeros(self.face_count, np.int16))
+        if self.plane_vertex is None:
+            object.__setattr__(self, "plane_vertex", self.face_index[self.face_start[:-1]].astype(np.int64))
 
     @property
     def face_count(self) -> int:
@@ -257,6 +303,8 @@ class FaceTable:
     opacity: np.ndarray  # (F,) float32
     face_size: np.ndarray  # (F,) int64 vertices per face
     local_face: np.ndarray  # (F,) int64 index of the face within its model
+    layer: np.ndarray  # (F,) int16
+    plane_xyz: np.ndarray  # (F, 3) float64 model metres, the point fixing each face's plane
 
     @staticmethod
     def of(models: "tuple[Model, ...]") -> "FaceTable":
@@ -274,6 +322,8 @@ class FaceTable:
             opacity=np.zeros(0, np.float32) if empty else np.concatenate([m.opacity for m in models]).astype(np.float32),
             face_size=np.zeros(0, np.int64) if empty else np.concatenate([np.diff(m.face_start) for m in models]).astype(np.int64),
             local_face=np.zeros(0, np.int64) if empty else np.concatenate([np.arange(m.face_count) for m in models]).astype(np.int64),
+            layer=np.zeros(0, np.int16) if empty else np.concatenate([m.layer for m in models]).astype(np.int16),
+            plane_xyz=np.zeros((0, 3)) if empty else np.concatenate([m.vertices[m.plane_vertex] for m in models]),
         )
 
 

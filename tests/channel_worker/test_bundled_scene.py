@@ -101,8 +101,11 @@ def test_ground_features_lie_where_the_brief_puts_them(doc):
     surface = runway[doc["models"]["runway"]["faces"][0]["indices"]]
     np.testing.assert_array_equal(surface.min(axis=0), [-22.5, -1000.0, 0.02])
     np.testing.assert_array_equal(surface.max(axis=0), [22.5, 1000.0, 0.02])
-    for name in ("runway_centreline", "runway_end_markings"):
-        assert {v[2] for v in doc["models"][name]["vertices"]} == {0.05}, name
+    # Markings lie in the runway's plane, declared on its surface (face 0) one layer up.
+    assert {v[2] for v in doc["models"]["runway"]["vertices"]} == {0.02}
+    markings = doc["models"]["runway"]["faces"][1:]
+    assert len(markings) > 80
+    assert all(f["on"] == 0 and f["layer"] == 1 for f in markings)
 
 
 def test_geometry_errors_are_caught_when_parts_are_made():

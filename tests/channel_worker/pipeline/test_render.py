@@ -74,7 +74,7 @@ def test_stage_times_are_reported_in_order(make_scene, box_model_factory):
     times = StageTimes()
     render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), times=times)
     assert list(times.seconds) == ["view", "cull", "transform", "backface", "clip", "project",
-                                   "horizon", "raster", "resolve"]
+                                   "edges", "binning", "visibility", "resolve"]
 
 
 def test_unknown_sample_pattern_is_named(make_scene, box_model_factory):

@@ -1,0 +1,195 @@
+"""numba kernels for multi-sample visibility (see visibility.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .types import EARTH_ID, SKY_ID
+
+#: Relative margin on the early stop of a sub-area list: 1/z at a sample inside a polygon
+#: can exceed the polygon's largest vertex 1/z only by rounding (~1e-16 relative).
+_EARLY_STOP_MARGIN = 1e-9
+
+
+@njit(cache=True, inline="always")
+def _inside(px, py, s0, s1, ia, ib, ic, bias):
+    """Exact edge test of sample (px, py) (1/SUBPIXEL units) against polygon edges s0:s1."""
+    for j in range(s0, s1):
+        if ia[j] * px + ib[j] * py + ic[j] < bias[j]:
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _nearer(iz, lay, idx, ref_iz, ref_lay, ref_idx):
+    """Depth order of two features at one sample: larger 1/z is nearer; at exactly equal 1/z
+    (coplanar features sharing a plane) the higher layer is seen, then the earlier polygon."""
+    if iz != ref_iz:
+        return iz > ref_iz
+    if lay != ref_lay:
+        return lay > ref_lay
+    return idx < ref_idx
+
+
+@njit(cache=True, parallel=True)
+def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
+                      poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity,
+                      layer, off_fixed, subpixel, horizon, mapping,
+                      out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped):
+    """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
+
+    Sub-areas run in parallel, each with its own small sample store that stays in cache.
+    A list is read nearest first; reading stops once every sample of the sub-area holds an
+    opaque feature nearer than the nearest point of the next feature (hierarchical depth
+    rejection; with the list order it skips all the rest).
+
+    horizon: (kx, ky, k0), the world-z of the ray through a screen point (horizon.py); an
+    uncovered sample sees the earth where it is negative, the sky elsewhere.
+    mapping: (sx_scale, sx_off, sy_scale, sy_off), screen = tangent * scale + offset.
+    """
+    n_tiles = tile_start.shape[0] - 1
+    s_count = off_fixed.shape[0]
+    k_max = out_trans.shape[3]
+    inv_sub = 1.0 / subpixel
+    for t in prange(n_tiles):
+        ty = t // tiles_x
+        tx = t - ty * tiles_x
+        tx0 = tx * size
+        ty0 = ty * size
+        tx1 = min(tx0 + size, width)
+        ty1 = min(ty0 + size, height)
+        tw = tx1 - tx0
+        n = tw * (ty1 - ty0) * s_count
+        o_iz = np.zeros(n, np.float64)
+        o_id = np.full(n, -1, np.int32)
+        o_lay = np.zeros(n, np.int32)
+        t_iz = np.empty((n, k_max), np.float64)
+        t_id = np.empty((n, k_max), np.int32)
+        t_lay = np.empty((n, k_max), np.int32)
+        t_cnt = np.zeros(n, np.int32)
+        covered = 0
+        farthest = 0.0
+        dropped = 0
+        for k in range(tile_start[t], tile_start[t + 1]):
+            p = entry_polygon[k]
+            if covered == n and nearest[p] * (1.0 + _EARLY_STOP_MARGIN) < farthest:
+                out_stopped[t] = tile_start[t + 1] - k
+                break
+            full = entry_full[k]
+            a = inv_z[p, 0]
+            b = inv_z[p, 1]
+            c = inv_z[p, 2]
+            lay = layer[p]
+            opaque = opacity[p] >= 1.0
+            s0 = poly_start[p]
+            s1 = poly_start[p + 1]
+            lx0 = max(x0[p], tx0)
+            lx1 = min(x1[p], tx1 - 1)
+            ly0 = max(y0[p], ty0)
+            ly1 = min(y1[p], ty1 - 1)
+            changed = False
+            for y in range(ly0, ly1 + 1):
+                for x in range(lx0, lx1 + 1):
+                    base = ((y - ty0) * tw + (x - tx0)) * s_count
+                    for s in range(s_count):
+                        px = x * subpixel + off_fixed[s, 0]
+                        py = y * subpixel + off_fixed[s, 1]
+                        if not full and not _inside(px, py, s0, s1, ia, ib, ic, bias):
+                            continue
+                        i = base + s
+                        iz = a * (px * inv_sub) + b * (py * inv_sub) + c
+                        if o_id[i] >= 0 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], o_id[i]):
+                            continue
+                        if opaque:
+                            if o_id[i] < 0:
+                                covered += 1
+                            o_iz[i] = iz
+                            o_id[i] = p
+                            o_lay[i] = lay
+                            changed = True
+                            # Translucent features now behind the opaque one are hidden.
+                            m = t_cnt[i]
+                            while m > 0 and not _nearer(t_iz[i, m - 1], t_lay[i, m - 1],
+                                                        t_id[i, m - 1], iz, lay, p):
+                                m -= 1
+                            t_cnt[i] = m
+                        else:
+                            m = t_cnt[i]
+                            pos = m
+                            while pos > 0 and _nearer(iz, lay, p, t_iz[i, pos - 1],
+                                                      t_lay[i, pos - 1], t_id[i, pos - 1]):
+                                pos -= 1
+                            if m == k_max:
+                                # Store full: the farthest of the K + 1 is dropped (it is
+                                # the one seen through all the others).
+                                dropped += 1
+                                if pos == k_max:
+                                    continue
+                                m -= 1
+                            for q in range(m, pos, -1):
+                                t_iz[i, q] = t_iz[i, q - 1]
+                                t_id[i, q] = t_id[i, q - 1]
+                                t_lay[i, q] = t_lay[i, q - 1]
+                            t_iz[i, pos] = iz
+                            t_id[i, pos] = p
+                            t_lay[i, pos] = lay
+                            t_cnt[i] = m + 1
+            if opaque and changed and covered == n:
+                farthest = o_iz[0]
+                for i in range(1, n):
+                    farthest = min(farthest, o_iz[i])
+        out_dropped[t] = dropped
+
+        kx, ky, k0 = horizon[0], horizon[1], horizon[2]
+        sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
+        for y in range(ty0, ty1):
+            for x in range(tx0, tx1):
+                base = ((y - ty0) * tw + (x - tx0)) * s_count
+                near_range = np.inf
+                for s in range(s_count):
+                    i = base + s
+                    sx = (x * subpixel + off_fixed[s, 0]) * inv_sub
+                    sy = (y * subpixel + off_fixed[s, 1]) * inv_sub
+                    if o_id[i] >= 0:
+                        out_opaque[y, x, s] = o_id[i]
+                        # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
+                        rx = (sx - sx_off) / sx_scale
+                        ry = (sy - sy_off) / sy_scale
+                        near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) / o_iz[i])
+                    elif kx * sx + ky * sy + k0 < 0.0:
+                        out_opaque[y, x, s] = EARTH_ID
+                    else:
+                        out_opaque[y, x, s] = SKY_ID
+                    m = t_cnt[i]
+                    out_count[y, x, s] = m
+                    for q in range(m):
+                        out_trans[y, x, s, q] = t_id[i, q]
+                out_range[y, x] = near_range
+
+
+@njit(cache=True, parallel=True)
+def coverage_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
+                    poly_start, ia, ib, ic, bias, x0, x1, y0, y1, off_fixed, subpixel, out_count):
+    """How many polygons cover each sample, by the same lists and tests as visibility_kernel."""
+    n_tiles = tile_start.shape[0] - 1
+    s_count = off_fixed.shape[0]
+    for t in prange(n_tiles):
+        ty = t // tiles_x
+        tx = t - ty * tiles_x
+        tx0 = tx * size
+        ty0 = ty * size
+        tx1 = min(tx0 + size, width)
+        ty1 = min(ty0 + size, height)
+        for k in range(tile_start[t], tile_start[t + 1]):
+            p = entry_polygon[k]
+            full = entry_full[k]
+            for y in range(max(y0[p], ty0), min(y1[p], ty1 - 1) + 1):
+                for x in range(max(x0[p], tx0), min(x1[p], tx1 - 1) + 1):
+                    for s in range(s_count):
+                        px = x * subpixel + off_fixed[s, 0]
+                        py = y * subpixel + off_fixed[s, 1]
+                        if full or _inside(px, py, poly_start[p], poly_start[p + 1], ia, ib, ic, bias):
+                            out_count[y, x, s] += 1
