@@ -7,7 +7,7 @@ import sys
 import time
 
 from .pipeline.render import render_frame
-from .pipeline.samples import pattern_names
+from .quality import add_quality_arguments, quality_options
 from .pipeline.scene import SceneError, bundled_scene_path, load_scene
 from .pipeline.types import ChannelSpec, Eyepoint, StageTimes
 
@@ -27,8 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="vertical field of view, degrees (default: square pixels)")
     parser.add_argument("--channel-hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
                         help="channel yaw, pitch, roll offset from the aircraft nose, degrees")
-    parser.add_argument("--samples", default="4",
-                        help=f"samples per pixel: a count (1, 2, 4, 8, 16) or a pattern ({', '.join(pattern_names())})")
+    add_quality_arguments(parser, renderer=True)
     parser.add_argument("--out", required=True,
                         help="output image: .exr (linear float RGB + Z range in metres) or .png (sRGB 8-bit)")
     parser.add_argument("--times", action="store_true", help="print the time of each pipeline stage")
@@ -46,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
         eyepoint = Eyepoint.of(*args.eye, *args.hpr)
         times = StageTimes()
         t0 = time.perf_counter()
-        image = render_frame(database, channel, eyepoint, samples=args.samples, times=times)
+        image = render_frame(database, channel, eyepoint, times=times, **quality_options(args))
         elapsed = time.perf_counter() - t0
     except (SceneError, ValueError) as exc:
         print(f"ig render: error: {exc}", file=sys.stderr)
@@ -59,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
         "channel_roll_deg": channel.roll_deg,
         "frustum_deg": f"{channel.left_deg} {channel.right_deg} {channel.bottom_deg} {channel.top_deg}",
         "samples": str(args.samples), "scene": str(database.source),
+        "renderer": args.renderer, "filter": args.filter,
     }
     try:
         write_image(args.out, image.rgb, range_m=image.range_m, attributes=attributes)

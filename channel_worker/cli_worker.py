@@ -8,7 +8,7 @@ import threading
 
 from services.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error, load_rig_or_report
 
-from .pipeline.samples import pattern_names
+from .quality import add_quality_arguments, check_options, quality_options
 
 log = logging.getLogger("ig.worker")
 
@@ -19,9 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--channel", required=True, help="name of the rig channel to render")
     parser.add_argument("--scene", default=None,
                         help="scene JSON (docs/scene-format.md); default: the bundled airfield")
-    parser.add_argument("--samples", default="4",
-                        help=f"samples per pixel: a count (1, 2, 4, 8, 16) or a pattern "
-                             f"({', '.join(pattern_names())}); default 4")
+    add_quality_arguments(parser)
     parser.add_argument("--once", action="store_true",
                         help="exit when the host's run ends (default: wait for the next run)")
 
@@ -35,7 +33,6 @@ def run(args: argparse.Namespace) -> int:
     from services.grpc_util import configure_logging, stop_on_signals
     from services.rig import RigError, bind_address
 
-    from .pipeline.samples import sample_pattern
     from .pipeline.scene import SceneError, bundled_scene_path, load_scene
     from .worker import ChannelWorker, serve_worker
 
@@ -45,7 +42,8 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     try:
         channel = rig.channel(args.channel)
-        sample_pattern(args.samples)
+        options = quality_options(args)
+        check_options(options)
         # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
         database = load_scene(args.scene or bundled_scene_path())
     except (RigError, SceneError, ValueError) as exc:
@@ -55,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     stop = threading.Event()
     stop_on_signals(stop)
     worker = ChannelWorker(database, channel.spec, host_address=rig.host_address,
-                           compositor_address=rig.compositor_address, samples=args.samples, once=args.once)
+                           compositor_address=rig.compositor_address, options=options, once=args.once)
     log.info("worker %s: compiling kernels", channel.name)
     worker.warm_up()
     try:

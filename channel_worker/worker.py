@@ -106,14 +106,17 @@ class ChannelWorker:
         host_address: host:port of HostService.
         compositor_address: host:port of CompositorService.
         samples: sample pattern name or count.
+        options: further render_frame keyword arguments (filter, subarea, max_translucent,
+            and samples, which then overrides the argument).
         once: stop when the host's run ends instead of subscribing again for the next run.
     """
 
     def __init__(self, database: Database, channel: ChannelSpec, *, host_address: str,
-                 compositor_address: str, samples: int | str = 4, once: bool = False) -> None:
+                 compositor_address: str, samples: int | str = 4, options: dict | None = None,
+                 once: bool = False) -> None:
         self.database = database
         self.channel = channel
-        self.samples = samples
+        self.options = {"samples": samples, **(options or {})}
         self.once = once
         self.counters = WorkerCounters()
         #: Why the host refused this worker (its channel is not in the host's rig), else "".
@@ -134,7 +137,7 @@ class ChannelWorker:
         """
         tiny = ChannelSpec("warm-up", 8, 6, self.channel.left_deg, self.channel.right_deg,
                            self.channel.bottom_deg, self.channel.top_deg)
-        render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), samples=self.samples)
+        render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), **self.options)
 
     def status(self) -> worker_pb2.GetWorkerStatusResponse:
         """A consistent copy of the counters."""
@@ -231,7 +234,7 @@ class ChannelWorker:
             skipped = c.frames_skipped
         t0 = time.perf_counter()
         try:
-            image = render_frame(self.database, self.channel, eyepoint_of(frame.eyepoint), samples=self.samples)
+            image = render_frame(self.database, self.channel, eyepoint_of(frame.eyepoint), **self.options)
         except ValueError as exc:
             # The message names the field and value, e.g. "eyepoint.position[2]: nan is not finite".
             error = f"frame {number} refused: {exc}"

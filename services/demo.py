@@ -41,6 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=pixels, default=None, help="override every channel's width, pixels")
     parser.add_argument("--height", type=pixels, default=None, help="override every channel's height, pixels")
     parser.add_argument("--samples", default="4", help="samples per pixel, a count or a pattern name (default 4)")
+    parser.add_argument("--filter", default="box", help="pixel reconstruction filter: box, tent, gaussian (default box)")
     parser.add_argument("--exr-every", type=int, default=30,
                         help="also write a linear EXR every N frames (default 30; 0: never)")
     parser.add_argument("--out", default="out/demo",
@@ -184,6 +185,7 @@ class _Terminated(Exception):
 
 def run(args: argparse.Namespace) -> int:
     """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
+    from channel_worker.pipeline.resolve import check_filter
     from channel_worker.pipeline.samples import sample_pattern
 
     rig = load_rig_or_report(args.rig, "demo")
@@ -191,6 +193,7 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     try:
         sample_pattern(args.samples)
+        check_filter(args.filter)
     except ValueError as exc:
         error("demo", exc)
         return EXIT_BAD_INPUT
@@ -230,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
         # One numba thread per worker: the workers already run in parallel with each other.
         for ch in rig.channels:
             procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name,
-                                              "--samples", str(args.samples), "--once", *scene],
+                                              "--samples", str(args.samples), "--filter", args.filter, "--once", *scene],
                         env={"NUMBA_NUM_THREADS": "1"})
         procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(args.rate),
                              "--duration", str(args.duration)])

@@ -61,6 +61,13 @@ class Bins:
                 "subarea_list_max": int(np.diff(self.start).max(initial=0))}
 
 
+def check_subarea(subarea: int) -> int:
+    """The size as an int, or ValueError naming the value."""
+    if isinstance(subarea, bool) or not isinstance(subarea, (int, np.integer)) or not 1 <= subarea <= 256:
+        raise ValueError(f"subarea: expected an integer number of pixels in 1..256, got {subarea!r}")
+    return int(subarea)
+
+
 def bin_features(edges: Edges, start: np.ndarray, width: int, height: int,
                  subarea: int = DEFAULT_SUBAREA) -> Bins:
     """Build the feature list of every sub-area.
@@ -74,9 +81,7 @@ def bin_features(edges: Edges, start: np.ndarray, width: int, height: int,
     Raises:
         ValueError: subarea out of range.
     """
-    if isinstance(subarea, bool) or not isinstance(subarea, (int, np.integer)) or not 1 <= subarea <= 256:
-        raise ValueError(f"subarea: expected an integer number of pixels in 1..256, got {subarea!r}")
-    size = int(subarea)
+    size = check_subarea(subarea)
     tiles_x = -(-width // size)
     tiles_y = -(-height // size)
     half = size / 2.0

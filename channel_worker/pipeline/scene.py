@@ -178,7 +178,7 @@ class _Parser:
             opacity.append(self.number(face.get("opacity", 1.0), f"{fwhere}.opacity", 0.0, 1.0))
             if opacity[-1] == 0.0:
                 raise self.fail(f"{fwhere}.opacity", "0 makes the face invisible; remove it instead")
-            layer, pv = self.face_layer(face, k, layers, flat, start, vertices, normals, fwhere)
+            layer, pv = self.face_layer(face, k, layers, plane_vertex, flat, start, vertices, normals, fwhere)
             layers.append(layer)
             plane_vertex.append(pv)
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
@@ -189,8 +189,9 @@ class _Parser:
                      np.array(normals), centre, radius, np.array(layers, np.int16),
                      np.array(plane_vertex, np.int64))
 
-    def face_layer(self, face: dict, k: int, layers: list, flat: list, start: list,
-                   vertices: np.ndarray, normals: list, where: str) -> tuple[int, int]:
+    def face_layer(self, face: dict, k: int, layers: list, plane_vertex: list, flat: list,
+                   start: list, vertices: np.ndarray, normals: list,
+                   where: str) -> tuple[int, int]:
         """(layer, plane vertex) of face k; a face "on" another takes over its plane.
 
         The face's normal (normals[k]) is replaced by the base face's so that both transform
@@ -220,7 +221,9 @@ class _Parser:
         if float(normals[k] @ n) <= 0.0:
             raise self.fail(f"{where}.on", f"the face faces away from face {base}")
         normals[k] = n
-        return layer, flat[start[base]]
+        # The plane point of the base (its root's first vertex when the base is itself "on"
+        # another face), so a whole stack of layers shares one plane.
+        return layer, plane_vertex[base]
 
     def face_normal(self, pts: np.ndarray, where: str) -> np.ndarray:
         """Newell normal of a face; checks it is planar and strictly convex."""

@@ -67,3 +67,30 @@ def test_nan_in_file_is_rejected(tmp_path):
     p.write_text(text)
     with pytest.raises(SceneError, match=r"instances\[0\].position\[1\]: nan is not finite"):
         load_scene(p)
+
+
+def _layered(face_extra: dict, *, z2: float = 0.0) -> dict:
+    v = [[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0], [2, 2, z2], [4, 2, z2], [4, 4, z2]]
+    faces = [{"indices": [0, 1, 2, 3], "colour": "#000000"},
+             {"indices": [4, 5, 6], "colour": "#ffffff", **face_extra}]
+    return {"format": "ig-scene/1", "sky": {"colour": "#0000ff"}, "earth": {"colour": "#00ff00"},
+            "models": {"pad": {"vertices": v, "faces": faces}},
+            "instances": [{"model": "pad", "position": [0, 0, 0]}]}
+
+
+def test_a_face_on_another_shares_its_plane_and_layers_above_it():
+    db = parse_scene(_layered({"on": 0, "layer": 3}))
+    assert list(db.faces.layer) == [0, 3]
+    np.testing.assert_array_equal(db.faces.plane_xyz[1], db.faces.plane_xyz[0])
+    np.testing.assert_array_equal(db.faces.normal[1], db.faces.normal[0])
+
+
+@pytest.mark.parametrize("extra, z2, message", [
+    ({"layer": 1}, 0.0, r"faces\[1\]\.layer: a layer needs \"on\""),
+    ({"on": 1}, 0.0, r"faces\[1\]\.on: expected the index of an earlier face .* got 1"),
+    ({"on": 0, "layer": 0}, 0.0, r"faces\[1\]\.layer: .* got 0"),
+    ({"on": 0}, 0.5, r"faces\[1\]\.on: the face is not on face 0 \(a vertex lies 0\.5 m"),
+])
+def test_bad_layers_are_named(extra, z2, message):
+    with pytest.raises(SceneError, match=message):
+        parse_scene(_layered(extra, z2=z2))
