@@ -7,9 +7,9 @@ import sys
 import time
 
 from .pipeline.render import render_frame
-from .quality import add_quality_arguments, quality_options
 from .pipeline.scene import SceneError, bundled_scene_path, load_scene
 from .pipeline.types import ChannelSpec, Eyepoint, StageTimes
+from .quality import add_quality_arguments, quality_options
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -6,7 +6,14 @@ import argparse
 import logging
 import threading
 
-from services.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error, load_rig_or_report
+from services.cli_common import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_OK,
+    add_rig_arguments,
+    error,
+    load_rig_or_report,
+)
 
 from .quality import add_quality_arguments, check_options, quality_options
 

@@ -116,7 +116,8 @@ class ChannelWorker:
                  once: bool = False) -> None:
         self.database = database
         self.channel = channel
-        self.options = {"samples": samples, **(options or {})}
+        # The compositor takes colour only: no per-pixel ranges.
+        self.options = {"samples": samples, **(options or {}), "with_range": False}
         self.once = once
         self.counters = WorkerCounters()
         #: Why the host refused this worker (its channel is not in the host's rig), else "".

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .types import EARTH_ID, SKY_ID
+from .types import EARTH_ID
 
 
 @njit(cache=True, inline="always")
@@ -37,7 +37,8 @@ def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above):
     """Nearest surface seen by the pixel: its nearest polygon or, nearer, the earth plane.
 
     Range to the earth along the ray (tx, ty, 1): |ray| * height_above / -dz; dz < 0 for
-    every earth sample (visibility decided so), so the division is safe.
+    every earth sample (visibility decided so) except by rounding right at the horizon, where
+    the divisor is clamped to a tiny positive value (range -> huge, never negative).
     """
     nearest = polygon_range[y, x]
     for s in range(opaque.shape[2]):
@@ -45,35 +46,57 @@ def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above):
             a = tx[x, s]
             c = ty[y, s]
             dz = dz_row[0] * a + dz_row[1] * c + dz_row[2]
-            nearest = min(nearest, math.sqrt(a * a + c * c + 1.0) * height_above / -dz)
+            nearest = min(nearest, math.sqrt(a * a + c * c + 1.0) * height_above / max(-dz, 1e-300))
     return nearest
 
 
 @njit(cache=True, parallel=True)
 def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
-               height_above, out_rgb, out_range):
-    """Shade and average the samples of each pixel in one pass (no sample colour buffer)."""
+               height_above, want_range, out_rgb, out_range):
+    """Shade and average the samples of each pixel in one pass (no sample colour buffer).
+
+    A pixel whose samples all see one feature and nothing translucent (most pixels) takes that
+    feature's colour without a per-sample sum.
+    """
     h, w, s_count = opaque.shape
     inv_s = np.float32(1.0 / s_count)
     for y in prange(h):
         for x in range(w):
-            r = np.float32(0.0)
-            g = np.float32(0.0)
-            b = np.float32(0.0)
+            f0 = opaque[y, x, 0]
+            uniform = True
             for s in range(s_count):
-                sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth)
-                r += sr
-                g += sg
-                b += sb
-            out_rgb[y, x, 0] = r * inv_s
-            out_rgb[y, x, 1] = g * inv_s
-            out_rgb[y, x, 2] = b * inv_s
-            out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above)
+                if opaque[y, x, s] != f0 or count[y, x, s] != 0:
+                    uniform = False
+                    break
+            if uniform:
+                if f0 >= 0:
+                    out_rgb[y, x, 0] = colour[f0, 0]
+                    out_rgb[y, x, 1] = colour[f0, 1]
+                    out_rgb[y, x, 2] = colour[f0, 2]
+                else:
+                    bg = earth if f0 == EARTH_ID else sky
+                    out_rgb[y, x, 0] = bg[0]
+                    out_rgb[y, x, 1] = bg[1]
+                    out_rgb[y, x, 2] = bg[2]
+            else:
+                r = np.float32(0.0)
+                g = np.float32(0.0)
+                b = np.float32(0.0)
+                for s in range(s_count):
+                    sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth)
+                    r += sr
+                    g += sg
+                    b += sb
+                out_rgb[y, x, 0] = r * inv_s
+                out_rgb[y, x, 1] = g * inv_s
+                out_rgb[y, x, 2] = b * inv_s
+            if want_range:
+                out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above)
 
 
 @njit(cache=True, parallel=True)
 def shade_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
-                 height_above, out_samples, out_range):
+                 height_above, want_range, out_samples, out_range):
     """Every sample's colour, for filters that also read neighbouring pixels' samples."""
     h, w, s_count = opaque.shape
     for y in prange(h):
@@ -83,7 +106,8 @@ def shade_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, eart
                 out_samples[y, x, s, 0] = sr
                 out_samples[y, x, s, 1] = sg
                 out_samples[y, x, s, 2] = sb
-            out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above)
+            if want_range:
+                out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above)
 
 
 @njit(cache=True, parallel=True)

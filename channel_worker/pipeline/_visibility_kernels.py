@@ -37,8 +37,9 @@ def _nearer(iz, lay, idx, ref_iz, ref_lay, ref_idx):
 @njit(cache=True, parallel=True)
 def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
                       poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity,
-                      layer, off_fixed, subpixel, horizon, mapping,
-                      out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped):
+                      layer, off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
+                      out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
+                      fused, colour, sky, earth, dz_row, height_above, out_rgb, n_threads):
     """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
@@ -49,124 +50,256 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
     horizon: (kx, ky, k0), the world-z of the ray through a screen point (horizon.py); an
     uncovered sample sees the earth where it is negative, the sky elsewhere.
     mapping: (sx_scale, sx_off, sy_scale, sy_off), screen = tangent * scale + offset.
+    any_translucent: the frame has translucent polygons (else out_count is pre-zeroed and
+    out_trans never written). want_range: fill out_range (else it is left untouched).
+
+    fused: instead of writing the sample store, shade each sample from its features and write
+    the box-filtered pixel colour to out_rgb (and, with want_range, the pixel's nearest range
+    including the earth plane, dz_row / height_above as in the resolve stage): the seed's
+    per-sub-area pixel output, with no sample-sized array in memory.
     """
     n_tiles = tile_start.shape[0] - 1
     s_count = off_fixed.shape[0]
     k_max = out_trans.shape[3]
     inv_sub = 1.0 / subpixel
-    for t in prange(n_tiles):
-        ty = t // tiles_x
-        tx = t - ty * tiles_x
-        tx0 = tx * size
-        ty0 = ty * size
-        tx1 = min(tx0 + size, width)
-        ty1 = min(ty0 + size, height)
-        tw = tx1 - tx0
-        n = tw * (ty1 - ty0) * s_count
-        o_iz = np.zeros(n, np.float64)
-        o_id = np.full(n, -1, np.int32)
-        o_lay = np.zeros(n, np.int32)
-        t_iz = np.empty((n, k_max), np.float64)
-        t_id = np.empty((n, k_max), np.int32)
-        t_lay = np.empty((n, k_max), np.int32)
-        t_cnt = np.zeros(n, np.int32)
-        covered = 0
-        farthest = 0.0
-        dropped = 0
-        for k in range(tile_start[t], tile_start[t + 1]):
-            p = entry_polygon[k]
-            if covered == n and nearest[p] * (1.0 + _EARLY_STOP_MARGIN) < farthest:
-                out_stopped[t] = tile_start[t + 1] - k
-                break
-            full = entry_full[k]
-            a = inv_z[p, 0]
-            b = inv_z[p, 1]
-            c = inv_z[p, 2]
-            lay = layer[p]
-            opaque = opacity[p] >= 1.0
-            s0 = poly_start[p]
-            s1 = poly_start[p + 1]
-            lx0 = max(x0[p], tx0)
-            lx1 = min(x1[p], tx1 - 1)
-            ly0 = max(y0[p], ty0)
-            ly1 = min(y1[p], ty1 - 1)
-            changed = False
-            for y in range(ly0, ly1 + 1):
-                for x in range(lx0, lx1 + 1):
-                    base = ((y - ty0) * tw + (x - tx0)) * s_count
-                    for s in range(s_count):
-                        px = x * subpixel + off_fixed[s, 0]
-                        py = y * subpixel + off_fixed[s, 1]
-                        if not full and not _inside(px, py, s0, s1, ia, ib, ic, bias):
-                            continue
-                        i = base + s
-                        iz = a * (px * inv_sub) + b * (py * inv_sub) + c
-                        if o_id[i] >= 0 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], o_id[i]):
-                            continue
-                        if opaque:
-                            if o_id[i] < 0:
-                                covered += 1
-                            o_iz[i] = iz
-                            o_id[i] = p
-                            o_lay[i] = lay
-                            changed = True
-                            # Translucent features now behind the opaque one are hidden.
-                            m = t_cnt[i]
-                            while m > 0 and not _nearer(t_iz[i, m - 1], t_lay[i, m - 1],
-                                                        t_id[i, m - 1], iz, lay, p):
-                                m -= 1
-                            t_cnt[i] = m
-                        else:
-                            m = t_cnt[i]
-                            pos = m
-                            while pos > 0 and _nearer(iz, lay, p, t_iz[i, pos - 1],
-                                                      t_lay[i, pos - 1], t_id[i, pos - 1]):
-                                pos -= 1
-                            if m == k_max:
-                                # Store full: the farthest of the K + 1 is dropped (it is
-                                # the one seen through all the others).
-                                dropped += 1
-                                if pos == k_max:
-                                    continue
-                                m -= 1
-                            for q in range(m, pos, -1):
-                                t_iz[i, q] = t_iz[i, q - 1]
-                                t_id[i, q] = t_id[i, q - 1]
-                                t_lay[i, q] = t_lay[i, q - 1]
-                            t_iz[i, pos] = iz
-                            t_id[i, pos] = p
-                            t_lay[i, pos] = lay
-                            t_cnt[i] = m + 1
-            if opaque and changed and covered == n:
-                farthest = o_iz[0]
-                for i in range(1, n):
-                    farthest = min(farthest, o_iz[i])
-        out_dropped[t] = dropped
+    # Sub-areas are dealt round-robin to a few chunks per thread; each chunk allocates its
+    # sample store once (allocating per sub-area cost more than the work in an empty one).
+    n_chunks = min(n_tiles, 4 * n_threads)
+    n_max = size * size * s_count
+    for chunk in prange(n_chunks):
+        o_iz = np.empty(n_max, np.float64)
+        o_id = np.empty(n_max, np.int32)
+        o_lay = np.empty(n_max, np.int32)
+        n_t = n_max if any_translucent else 1
+        t_iz = np.empty((n_t, k_max), np.float64)
+        t_id = np.empty((n_t, k_max), np.int32)
+        t_lay = np.empty((n_t, k_max), np.int32)
+        t_cnt = np.zeros(n_t, np.int32)
+        for t in range(chunk, n_tiles, n_chunks):
+            _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
+                  poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity, layer,
+                  off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
+                  out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
+                  o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
+                  fused, colour, sky, earth, dz_row, height_above, out_rgb)
 
-        kx, ky, k0 = horizon[0], horizon[1], horizon[2]
-        sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
-        for y in range(ty0, ty1):
-            for x in range(tx0, tx1):
+
+@njit(cache=True)
+def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
+          poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity, layer,
+          off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
+          out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
+          o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
+          fused, colour, sky, earth, dz_row, height_above, out_rgb):
+    """One sub-area of visibility_kernel, with the chunk's sample store as scratch."""
+    ty = t // tiles_x
+    tx = t - ty * tiles_x
+    tx0 = tx * size
+    ty0 = ty * size
+    tx1 = min(tx0 + size, width)
+    ty1 = min(ty0 + size, height)
+    tw = tx1 - tx0
+    n = tw * (ty1 - ty0) * s_count
+    for i in range(n):
+        o_iz[i] = 0.0
+        o_id[i] = -1
+        o_lay[i] = 0
+    if any_translucent:
+        for i in range(n):
+            t_cnt[i] = 0
+    covered = 0
+    farthest = 0.0
+    dropped = 0
+    for k in range(tile_start[t], tile_start[t + 1]):
+        p = entry_polygon[k]
+        if covered == n and nearest[p] * (1.0 + _EARLY_STOP_MARGIN) < farthest:
+            out_stopped[t] = tile_start[t + 1] - k
+            break
+        full = entry_full[k]
+        a = inv_z[p, 0]
+        b = inv_z[p, 1]
+        c = inv_z[p, 2]
+        lay = layer[p]
+        opaque = opacity[p] >= 1.0
+        s0 = poly_start[p]
+        s1 = poly_start[p + 1]
+        lx0 = max(x0[p], tx0)
+        lx1 = min(x1[p], tx1 - 1)
+        ly0 = max(y0[p], ty0)
+        ly1 = min(y1[p], ty1 - 1)
+        changed = False
+        for y in range(ly0, ly1 + 1):
+            for x in range(lx0, lx1 + 1):
                 base = ((y - ty0) * tw + (x - tx0)) * s_count
-                near_range = np.inf
                 for s in range(s_count):
+                    px = x * subpixel + off_fixed[s, 0]
+                    py = y * subpixel + off_fixed[s, 1]
+                    if not full and not _inside(px, py, s0, s1, ia, ib, ic, bias):
+                        continue
                     i = base + s
-                    sx = (x * subpixel + off_fixed[s, 0]) * inv_sub
-                    sy = (y * subpixel + off_fixed[s, 1]) * inv_sub
-                    if o_id[i] >= 0:
-                        out_opaque[y, x, s] = o_id[i]
-                        # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
-                        rx = (sx - sx_off) / sx_scale
-                        ry = (sy - sy_off) / sy_scale
-                        near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) / o_iz[i])
-                    elif kx * sx + ky * sy + k0 < 0.0:
-                        out_opaque[y, x, s] = EARTH_ID
+                    iz = a * (px * inv_sub) + b * (py * inv_sub) + c
+                    if o_id[i] >= 0 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], o_id[i]):
+                        continue
+                    if opaque:
+                        if o_id[i] < 0:
+                            covered += 1
+                        o_iz[i] = iz
+                        o_id[i] = p
+                        o_lay[i] = lay
+                        changed = True
+                        if not any_translucent:
+                            continue
+                        # Translucent features now behind the opaque one are hidden.
+                        m = t_cnt[i]
+                        while m > 0 and not _nearer(t_iz[i, m - 1], t_lay[i, m - 1],
+                                                    t_id[i, m - 1], iz, lay, p):
+                            m -= 1
+                        t_cnt[i] = m
                     else:
-                        out_opaque[y, x, s] = SKY_ID
+                        m = t_cnt[i]
+                        pos = m
+                        while pos > 0 and _nearer(iz, lay, p, t_iz[i, pos - 1],
+                                                  t_lay[i, pos - 1], t_id[i, pos - 1]):
+                            pos -= 1
+                        if m == k_max:
+                            # Store full: the farthest of the K + 1 is dropped (it is
+                            # the one seen through all the others).
+                            dropped += 1
+                            if pos == k_max:
+                                continue
+                            m -= 1
+                        for q in range(m, pos, -1):
+                            t_iz[i, q] = t_iz[i, q - 1]
+                            t_id[i, q] = t_id[i, q - 1]
+                            t_lay[i, q] = t_lay[i, q - 1]
+                        t_iz[i, pos] = iz
+                        t_id[i, pos] = p
+                        t_lay[i, pos] = lay
+                        t_cnt[i] = m + 1
+        if opaque and changed and covered == n:
+            farthest = o_iz[0]
+            for i in range(1, n):
+                farthest = min(farthest, o_iz[i])
+    out_dropped[t] = dropped
+
+    kx, ky, k0 = horizon[0], horizon[1], horizon[2]
+    sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
+    # The horizon value is affine, so its sign over the sub-area is known from the corners
+    # unless the horizon line crosses it.
+    h00 = kx * tx0 + ky * ty0 + k0
+    h10 = kx * (tx0 + size) + ky * ty0 + k0
+    h01 = kx * tx0 + ky * (ty0 + size) + k0
+    h11 = kx * (tx0 + size) + ky * (ty0 + size) + k0
+    background = 0
+    if h00 < 0.0 and h10 < 0.0 and h01 < 0.0 and h11 < 0.0:
+        background = EARTH_ID
+    elif h00 >= 0.0 and h10 >= 0.0 and h01 >= 0.0 and h11 >= 0.0:
+        background = SKY_ID
+    if fused:
+        _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon,
+                    mapping, background, want_range, o_iz, o_id, t_id, t_cnt, any_translucent,
+                    opacity, colour, sky, earth, dz_row, height_above, out_rgb, out_range)
+        return
+    for y in range(ty0, ty1):
+        sy_row = (y * subpixel) * inv_sub
+        for x in range(tx0, tx1):
+            base = ((y - ty0) * tw + (x - tx0)) * s_count
+            near_range = np.inf
+            for s in range(s_count):
+                i = base + s
+                f = o_id[i]
+                if f < 0:
+                    if background != 0:
+                        f = background
+                    else:
+                        sx = (x * subpixel + off_fixed[s, 0]) * inv_sub
+                        sy = sy_row + off_fixed[s, 1] * inv_sub
+                        f = EARTH_ID if kx * sx + ky * sy + k0 < 0.0 else SKY_ID
+                elif want_range:
+                    sx = (x * subpixel + off_fixed[s, 0]) * inv_sub
+                    sy = sy_row + off_fixed[s, 1] * inv_sub
+                    # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
+                    rx = (sx - sx_off) / sx_scale
+                    ry = (sy - sy_off) / sy_scale
+                    near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) / o_iz[i])
+                out_opaque[y, x, s] = f
+                if any_translucent:
                     m = t_cnt[i]
                     out_count[y, x, s] = m
                     for q in range(m):
                         out_trans[y, x, s, q] = t_id[i, q]
+            if want_range:
+                out_range[y, x] = near_range
+
+
+@njit(cache=True)
+def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon, mapping,
+                background, want_range, o_iz, o_id, t_id, t_cnt, any_translucent, opacity,
+                colour, sky, earth, dz_row, height_above, out_rgb, out_range):
+    """Pixel outputs of one sub-area: each sample shaded (translucent features front to back
+    over the opaque one, or sky / earth), averaged over the pixel; optionally the range."""
+    kx, ky, k0 = horizon[0], horizon[1], horizon[2]
+    sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
+    inv_s = 1.0 / s_count
+    sky_r, sky_g, sky_b = sky[0], sky[1], sky[2]
+    earth_r, earth_g, earth_b = earth[0], earth[1], earth[2]
+    for y in range(ty0, ty1):
+        for x in range(tx0, tx1):
+            base = ((y - ty0) * tw + (x - tx0)) * s_count
+            r = 0.0
+            g = 0.0
+            b = 0.0
+            near_range = np.inf
+            for s in range(s_count):
+                i = base + s
+                through = 1.0
+                if any_translucent:
+                    for q in range(t_cnt[i]):
+                        p = t_id[i, q]
+                        a = opacity[p] * through
+                        r += a * colour[p, 0]
+                        g += a * colour[p, 1]
+                        b += a * colour[p, 2]
+                        through *= 1.0 - opacity[p]
+                f = o_id[i]
+                if f >= 0:
+                    r += through * colour[f, 0]
+                    g += through * colour[f, 1]
+                    b += through * colour[f, 2]
+                    if want_range:
+                        rx = ((x * subpixel + off_fixed[s, 0]) * inv_sub - sx_off) / sx_scale
+                        ry = ((y * subpixel + off_fixed[s, 1]) * inv_sub - sy_off) / sy_scale
+                        # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
+                        near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) / o_iz[i])
+                    continue
+                f = background
+                if f == 0 or (want_range and f == EARTH_ID):
+                    sx = (x * subpixel + off_fixed[s, 0]) * inv_sub
+                    sy = (y * subpixel + off_fixed[s, 1]) * inv_sub
+                    dz = kx * sx + ky * sy + k0
+                    if f == 0:
+                        f = EARTH_ID if dz < 0.0 else SKY_ID
+                    if want_range and f == EARTH_ID:
+                        rx = (sx - sx_off) / sx_scale
+                        ry = (sy - sy_off) / sy_scale
+                        ez = dz_row[0] * rx + dz_row[1] * ry + dz_row[2]
+                        # Guard: ez < 0 for earth samples (the same line as dz, in tangents);
+                        # at the horizon rounding may give 0 or a tiny positive: range -> huge.
+                        near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) * height_above / max(-ez, 1e-300))
+                # Scalars, not an array chosen per sample: that would cost a reference-count
+                # update (an atomic) per sample.
+                if f == EARTH_ID:
+                    r += through * earth_r
+                    g += through * earth_g
+                    b += through * earth_b
+                else:
+                    r += through * sky_r
+                    g += through * sky_g
+                    b += through * sky_b
+            out_rgb[y, x, 0] = r * inv_s
+            out_rgb[y, x, 1] = g * inv_s
+            out_rgb[y, x, 2] = b * inv_s
+            if want_range:
                 out_range[y, x] = near_range
 
 

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Iterator
 
 from .backface import eliminate_backfaces
 from .binning import DEFAULT_SUBAREA, bin_features
@@ -16,7 +17,12 @@ from .project import project
 from .resolve import check_filter, resolve
 from .samples import sample_pattern
 from .types import ChannelSpec, Database, Eyepoint, Image, StageTimes
-from .visibility import DEFAULT_MAX_TRANSLUCENT, check_max_translucent, resolve_visibility
+from .visibility import (
+    DEFAULT_MAX_TRANSLUCENT,
+    check_max_translucent,
+    resolve_visibility,
+    visible_pixels,
+)
 
 #: Visibility renderers by name: "subarea" is the sub-area, multi-sample renderer (seed 000);
 #: "scanline" the scan-line hidden-surface algorithm of seed 003, one sample per pixel centre,
@@ -27,7 +33,8 @@ RENDERERS = ("subarea", "scanline")
 def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *,
                  samples: int | str = 4, renderer: str = "subarea", filter: str = "box",
                  subarea: int = DEFAULT_SUBAREA, max_translucent: int = DEFAULT_MAX_TRANSLUCENT,
-                 times: StageTimes | None = None, trace: dict | None = None) -> Image:
+                 with_range: bool = True, times: StageTimes | None = None,
+                 trace: dict | None = None) -> Image:
     """Render one channel's view of the database from the eyepoint.
 
     Args:
@@ -40,6 +47,8 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
         filter: reconstruction filter name (resolve.FILTERS).
         subarea: sub-area edge length, pixels (binning.py).
         max_translucent: translucent features kept per sample (visibility.py).
+        with_range: also compute Image.range_m (else None; a channel that only shows colour
+            skips a square root and a division per covered sample).
         times: if given, receives the seconds spent in each stage.
         trace: if given, receives the frame's "screen" polygons and sample "buffer".
 
@@ -74,12 +83,20 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             edges = setup_edges(screen, view.width, view.height)
         with clock("binning"):
             bins = bin_features(edges, screen.start, view.width, view.height, subarea)
+        if filter == "box" and trace is None:
+            # Default quality: pixels straight from each sub-area, no sample store in memory.
+            with clock("visibility"):
+                return visible_pixels(screen, edges, bins, view, database, offsets,
+                                      max_translucent, with_range=with_range)
         with clock("visibility"):
-            buffer = resolve_visibility(screen, edges, bins, view, offsets, max_translucent)
+            buffer = resolve_visibility(screen, edges, bins, view, offsets, max_translucent,
+                                        with_range=with_range)
     else:
         from .scanline import scanline_visibility  # TEMP until helper lands
         with clock("scanline"):
             buffer = scanline_visibility(screen, view, database, max_translucent=max_translucent)
+            if not with_range:
+                buffer = dataclasses.replace(buffer, polygon_range=None)
     with clock("resolve"):
         image = resolve(buffer, screen, view, database, filter)
     if trace is not None:

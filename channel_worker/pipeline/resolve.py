@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -66,22 +66,25 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
         filter: name in FILTERS.
 
     Returns:
-        Image with linear RGB and range in metres (+inf where every sample sees sky).
+        Image with linear RGB and range in metres (+inf where every sample sees sky), the
+        range only if the buffer has polygon ranges.
     """
     check_filter(filter)
     h, w = view.height, view.width
     rgb = np.empty((h, w, 3), np.float32)
-    range_m = np.empty((h, w), np.float32)
+    want_range = buffer.polygon_range is not None
+    range_m = np.empty((h, w) if want_range else (1, 1), np.float32)
+    polygon_range = buffer.polygon_range if want_range else range_m
     sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
     tx = (np.arange(w)[:, None] + buffer.offsets[None, :, 0] - sx_off) / sx_scale
     ty = (np.arange(h)[:, None] + buffer.offsets[None, :, 1] - sy_off) / sy_scale
-    args = (buffer.opaque, buffer.translucent, buffer.translucent_count, buffer.polygon_range,
+    args = (buffer.opaque, buffer.translucent, buffer.translucent_count, polygon_range,
             screen.colour, screen.opacity, database.sky_colour, database.earth_colour, tx, ty,
-            earth_dz_row(view), height_above_earth(database, view))
+            earth_dz_row(view), height_above_earth(database, view), want_range)
     if filter == "box":
         box_kernel(*args, rgb, range_m)
     else:
         samples = np.empty(buffer.opaque.shape + (3,), np.float32)
         shade_kernel(*args, samples, range_m)
         filter_kernel(samples, filter_weights(filter, buffer.offsets), rgb)
-    return Image(rgb=rgb, range_m=range_m)
+    return Image(rgb=rgb, range_m=range_m if want_range else None)

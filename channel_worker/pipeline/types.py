@@ -199,18 +199,21 @@ class SampleBuffer:
             polygon covering the sample, or SKY_ID / EARTH_ID where none does.
         translucent: (H, W, S, K) int32 indices of the translucent polygons nearer than the
             opaque one, nearest first; only the first translucent_count entries are meaningful.
+            (1, 1, 1, K) when the frame has no translucent polygon (every count is then 0).
         translucent_count: (H, W, S) uint8, at most K.
         polygon_range: (H, W) float32 distance from the eye (metres) to the nearest opaque
-            polygon seen by any sample of the pixel; +inf where no sample sees a polygon.
-        stats: counters of the visibility stage (e.g. "translucent_overflow": samples where more
-            than K translucent features were nearer than the opaque one and the farthest of them
-            were dropped; "subareas_full", "subareas_partial": sub-area/feature pairs by class).
+            polygon seen by any sample of the pixel, +inf where no sample sees a polygon; None
+            when the frame was rendered without ranges.
+        stats: counters of the visibility stage ("translucent_dropped": times a translucent
+            feature was dropped from a full store; "subarea_entries_full" / "_partial":
+            sub-area list entries by class; "entries_skipped_by_depth": entries never read
+            because every sample already held a nearer opaque feature).
     """
     offsets: np.ndarray
     opaque: np.ndarray
     translucent: np.ndarray
     translucent_count: np.ndarray
-    polygon_range: np.ndarray
+    polygon_range: np.ndarray | None
     stats: dict[str, int] = field(default_factory=dict)
 
     @property
@@ -225,11 +228,11 @@ class Image:
     Attributes:
         rgb: (H, W, 3) float32 linear RGB.
         range_m: (H, W) float32 distance from the eye to the nearest surface seen in the pixel,
-            metres; +inf where the pixel sees only sky.
+            metres; +inf where the pixel sees only sky. None when rendered without ranges.
     """
 
     rgb: np.ndarray
-    range_m: np.ndarray
+    range_m: np.ndarray | None
 
 
 @dataclass

@@ -18,14 +18,15 @@ The store holds identities; the resolve stage turns them into colours.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from ._visibility_kernels import coverage_kernel, visibility_kernel
 from .binning import DEFAULT_SUBAREA, Bins, bin_features
 from .edges import Edges, setup_edges
-from .horizon import earth_dz_screen
+from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
-from .types import SUBPIXEL, SampleBuffer, ScreenPolygons, View
+from .types import SUBPIXEL, Database, Image, SampleBuffer, ScreenPolygons, View
 
 #: Default size of the per-sample translucent store.
 DEFAULT_MAX_TRANSLUCENT = 4
@@ -39,7 +40,8 @@ def check_max_translucent(k: int) -> int:
 
 
 def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
-                       offsets: np.ndarray, max_translucent: int = DEFAULT_MAX_TRANSLUCENT) -> SampleBuffer:
+                       offsets: np.ndarray, max_translucent: int = DEFAULT_MAX_TRANSLUCENT, *,
+                       with_range: bool = True) -> SampleBuffer:
     """The sample store of one frame: nearest opaque and nearer translucent features per sample.
 
     Args:
@@ -49,28 +51,73 @@ def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: V
         view: the channel's view (raster size, horizon, screen mapping).
         offsets: (S, 2) sample positions inside the pixel (samples.sample_pattern).
         max_translucent: K, translucent features kept per sample (1..15).
+        with_range: compute polygon_range (else it is None: a frame that only needs colour
+            pays nothing for ranges).
     """
     k = check_max_translucent(max_translucent)
     h, w, s = view.height, view.width, offsets.shape[0]
-    off_fixed = _offsets_fixed(offsets)
+    any_translucent = bool((screen.opacity < 1.0).any())
+    # Without translucent polygons the store stays empty: zeroed counts cost no writes.
+    trans = np.empty((h, w, s, k) if any_translucent else (1, 1, 1, k), np.int32)
+    count = np.empty((h, w, s), np.uint8) if any_translucent else np.zeros((h, w, s), np.uint8)
+    polygon_range = np.empty((h, w) if with_range else (1, 1), np.float32)
     opaque = np.empty((h, w, s), np.int32)
-    trans = np.empty((h, w, s, k), np.int32)
-    count = np.empty((h, w, s), np.uint8)
-    polygon_range = np.empty((h, w), np.float32)
+    stats = _run(screen, edges, bins, view, offsets, k, any_translucent, with_range,
+                 opaque, trans, count, polygon_range, None)
+    return SampleBuffer(offsets=offsets, opaque=opaque, translucent=trans, translucent_count=count,
+                        polygon_range=polygon_range if with_range else None, stats=stats)
+
+
+def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View, database: Database,
+                   offsets: np.ndarray, max_translucent: int = DEFAULT_MAX_TRANSLUCENT, *,
+                   with_range: bool = True, stats: dict | None = None) -> Image:
+    """The same visibility with the box filter applied inside each sub-area (seed 000: "an
+    output for each pixel within a sub-area"): no sample store is written, which is what makes
+    the default quality fast. Identical to resolve(resolve_visibility(...), filter="box") up to
+    float32 summation order (tested).
+
+    Args:
+        database: for the sky and earth colours and the eye height above the earth.
+        stats: if given, receives the visibility counters.
+    """
+    k = check_max_translucent(max_translucent)
+    h, w = view.height, view.width
+    rgb = np.empty((h, w, 3), np.float32)
+    range_m = np.empty((h, w) if with_range else (1, 1), np.float32)
+    counters = _run(screen, edges, bins, view, offsets, k, bool((screen.opacity < 1.0).any()),
+                    with_range, np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),
+                    np.empty((1, 1, 1), np.uint8), range_m, (database, rgb))
+    if stats is not None:
+        stats.update(counters)
+    return Image(rgb=rgb, range_m=range_m if with_range else None)
+
+
+def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opaque, trans, count,
+         polygon_range, fused) -> dict[str, int]:
     n_tiles = bins.tiles_x * bins.tiles_y
     dropped = np.zeros(n_tiles, np.int64)
     stopped = np.zeros(n_tiles, np.int64)
-    visibility_kernel(bins.start, bins.polygon, bins.full, bins.size, bins.tiles_x, w, h,
-                      screen.start, edges.ia, edges.ib, edges.ic, edges.bias,
+    if fused is None:
+        database, rgb = None, np.empty((1, 1, 3), np.float32)
+        sky = earth = np.zeros(3, np.float32)
+        height = 1.0
+    else:
+        database, rgb = fused
+        sky, earth = database.sky_colour, database.earth_colour
+        height = height_above_earth(database, view)
+    visibility_kernel(bins.start, bins.polygon, bins.full, bins.size, bins.tiles_x, view.width,
+                      view.height, screen.start, edges.ia, edges.ib, edges.ic, edges.bias,
                       edges.x0, edges.x1, edges.y0, edges.y1, edges.nearest_inv_z,
-                      screen.inv_z, screen.opacity, screen.layer.astype(np.int32), off_fixed,
-                      SUBPIXEL, np.array(earth_dz_screen(view)), np.array(screen_mapping(view)),
-                      opaque, trans, count, polygon_range, dropped, stopped)
+                      screen.inv_z, screen.opacity, screen.layer.astype(np.int32),
+                      _offsets_fixed(offsets), SUBPIXEL, np.array(earth_dz_screen(view)),
+                      np.array(screen_mapping(view)), any_translucent, with_range,
+                      opaque, trans, count, polygon_range, dropped, stopped,
+                      fused is not None, screen.colour, sky, earth, earth_dz_row(view), height, rgb,
+                      numba.get_num_threads())
     stats = dict(bins.stats)
     stats["translucent_dropped"] = int(dropped.sum())
     stats["entries_skipped_by_depth"] = int(stopped.sum())
-    return SampleBuffer(offsets=offsets, opaque=opaque, translucent=trans, translucent_count=count,
-                        polygon_range=polygon_range, stats=stats)
+    return stats
 
 
 def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np.ndarray, *,

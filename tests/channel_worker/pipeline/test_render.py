@@ -71,10 +71,37 @@ def test_translucent_face_blends_over_what_is_behind(make_scene, box_model_facto
 
 
 def test_stage_times_are_reported_in_order(make_scene, box_model_factory):
+    db = scene(make_scene, box_model_factory)
+    eye = Eyepoint.of(0, 0, 5, 0, 0, 0)
+    common = ["view", "cull", "transform", "backface", "clip", "project", "edges", "binning", "visibility"]
+    # Box filter: pixels come straight out of each sub-area (no separate resolve pass).
     times = StageTimes()
-    render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), times=times)
-    assert list(times.seconds) == ["view", "cull", "transform", "backface", "clip", "project",
-                                   "edges", "binning", "visibility", "resolve"]
+    render_frame(db, CH, eye, times=times)
+    assert list(times.seconds) == common
+    times = StageTimes()
+    render_frame(db, CH, eye, filter="tent", times=times)
+    assert list(times.seconds) == common + ["resolve"]
+
+
+@pytest.mark.parametrize("samples", ["centre", "rgss4", "d3d16"])
+@pytest.mark.parametrize("with_range", [True, False])
+def test_fused_box_path_equals_sample_store_and_resolve(samples, with_range):
+    """The default fast path (box filter inside each sub-area) and the sample store + resolve
+    stage give the same image, on the bundled airfield with its translucent tower glass."""
+    from channel_worker.pipeline.scene import bundled_scene_path, load_scene
+    db = load_scene(bundled_scene_path())
+    ch = ChannelSpec.symmetric("c", 160, 96, 60.0)
+    # The control tower (its glass cab at 17.6-20.6 m) 60 m ahead, hangars and sky behind.
+    eye = Eyepoint.of(-140.0, -660.0, 19.0, 0.0, 2.0, 5.0)
+    fused = render_frame(db, ch, eye, samples=samples, with_range=with_range)
+    trace: dict = {}
+    stored = render_frame(db, ch, eye, samples=samples, with_range=with_range, trace=trace)
+    assert (trace["buffer"].translucent_count > 0).any()
+    np.testing.assert_allclose(fused.rgb, stored.rgb, rtol=0, atol=2e-6)
+    if with_range:
+        np.testing.assert_allclose(fused.range_m, stored.range_m, rtol=1e-6)
+    else:
+        assert fused.range_m is None and stored.range_m is None
 
 
 def test_unknown_sample_pattern_is_named(make_scene, box_model_factory):

@@ -10,7 +10,14 @@ from channel_worker.pipeline.edges import setup_edges
 from channel_worker.pipeline.geometry import make_view
 from channel_worker.pipeline.render import render_frame
 from channel_worker.pipeline.samples import sample_pattern
-from channel_worker.pipeline.types import EARTH_ID, SKY_ID, SUBPIXEL, ChannelSpec, Eyepoint, ScreenPolygons
+from channel_worker.pipeline.types import (
+    EARTH_ID,
+    SKY_ID,
+    SUBPIXEL,
+    ChannelSpec,
+    Eyepoint,
+    ScreenPolygons,
+)
 from channel_worker.pipeline.visibility import coverage_counts, resolve_visibility
 
 W, H = 40, 24
@@ -57,7 +64,7 @@ def brute_force(screen: ScreenPolygons, offsets: np.ndarray, k: int):
         a, b, c = screen.inv_z[p]
         inside.append(ok)
         depth.append(a * (px * (1.0 / SUBPIXEL)) + b * (py * (1.0 / SUBPIXEL)) + c)
-    key = lambda p, m: (depth[p][m], int(screen.layer[p]), -p)  # noqa: E731
+    key = lambda p, m: (depth[p][m], int(screen.layer[p]), -p)
     opaque = np.full(px.shape, -1)
     trans = {}
     for m in np.ndindex(px.shape):
