@@ -39,7 +39,7 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
                       poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity,
                       layer, off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
                       out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
-                      fused, colour, sky, earth, dz_row, height_above, out_rgb, n_threads):
+                      fused, colour, sky, earth, dz_row, height_above, out_rgb):
     """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
@@ -62,11 +62,13 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
     s_count = off_fixed.shape[0]
     k_max = out_trans.shape[3]
     inv_sub = 1.0 / subpixel
-    # Sub-areas are dealt round-robin to a few chunks per thread; each chunk allocates its
-    # sample store once (allocating per sub-area cost more than the work in an empty one).
-    n_chunks = min(n_tiles, 4 * n_threads)
+    # A thread takes a whole row of sub-areas at a time (handed out one by one, for balance:
+    # sky rows are cheap) and walks it left to right, so its pixel writes run along the
+    # image rows instead of jumping a page per row of every sub-area; the sample store is
+    # allocated once per row of sub-areas. (The caller sets the parallel chunk size to 1.)
+    tiles_y = n_tiles // tiles_x
     n_max = size * size * s_count
-    for chunk in prange(n_chunks):
+    for row in prange(tiles_y):
         o_iz = np.empty(n_max, np.float64)
         o_id = np.empty(n_max, np.int32)
         o_lay = np.empty(n_max, np.int32)
@@ -75,7 +77,7 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
         t_id = np.empty((n_t, k_max), np.int32)
         t_lay = np.empty((n_t, k_max), np.int32)
         t_cnt = np.zeros(n_t, np.int32)
-        for t in range(chunk, n_tiles, n_chunks):
+        for t in range(row * tiles_x, (row + 1) * tiles_x):
             _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
                   poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity, layer,
                   off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
@@ -196,6 +198,28 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
     elif h00 >= 0.0 and h10 >= 0.0 and h01 >= 0.0 and h11 >= 0.0:
         background = SKY_ID
     if fused:
+        # A sub-area whose every sample sees one thing and nothing translucent (open sky,
+        # open ground, the inside of a large face) is one colour: fill it without shading.
+        uniform = o_id[0]
+        for i in range(n):
+            if o_id[i] != uniform or (any_translucent and t_cnt[i] != 0):
+                uniform = -3
+                break
+        if uniform < 0 and uniform != -3:
+            uniform = background if background != 0 else -3
+        if uniform != -3 and not want_range:
+            if uniform >= 0:
+                cr, cg, cb = colour[uniform, 0], colour[uniform, 1], colour[uniform, 2]
+            elif uniform == EARTH_ID:
+                cr, cg, cb = earth[0], earth[1], earth[2]
+            else:
+                cr, cg, cb = sky[0], sky[1], sky[2]
+            for y in range(ty0, ty1):
+                for x in range(tx0, tx1):
+                    out_rgb[y, x, 0] = cr
+                    out_rgb[y, x, 1] = cg
+                    out_rgb[y, x, 2] = cb
+            return
         _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon,
                     mapping, background, want_range, o_iz, o_id, t_id, t_cnt, any_translucent,
                     opacity, colour, sky, earth, dz_row, height_above, out_rgb, out_range)
@@ -246,6 +270,33 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
             base = ((y - ty0) * tw + (x - tx0)) * s_count
+            if not want_range:
+                # Most pixels, even in a busy sub-area, see one thing with every sample.
+                f0 = o_id[base]
+                same = f0 >= 0 or background != 0
+                for s in range(1, s_count):
+                    if o_id[base + s] != f0:
+                        same = False
+                        break
+                if same and any_translucent:
+                    for s in range(s_count):
+                        if t_cnt[base + s] != 0:
+                            same = False
+                            break
+                if same:
+                    if f0 >= 0:
+                        out_rgb[y, x, 0] = colour[f0, 0]
+                        out_rgb[y, x, 1] = colour[f0, 1]
+                        out_rgb[y, x, 2] = colour[f0, 2]
+                    elif background == EARTH_ID:
+                        out_rgb[y, x, 0] = earth_r
+                        out_rgb[y, x, 1] = earth_g
+                        out_rgb[y, x, 2] = earth_b
+                    else:
+                        out_rgb[y, x, 0] = sky_r
+                        out_rgb[y, x, 1] = sky_g
+                        out_rgb[y, x, 2] = sky_b
+                    continue
             r = 0.0
             g = 0.0
             b = 0.0

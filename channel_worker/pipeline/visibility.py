@@ -105,6 +105,21 @@ def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opa
         database, rgb = fused
         sky, earth = database.sky_colour, database.earth_colour
         height = height_above_earth(database, view)
+    # Rows of sub-areas are handed to threads one at a time: their cost varies a lot.
+    previous = numba.set_parallel_chunksize(1)
+    try:
+        _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opaque, trans, count,
+                polygon_range, dropped, stopped, fused is not None, sky, earth, height, rgb)
+    finally:
+        numba.set_parallel_chunksize(previous)
+    stats = dict(bins.stats)
+    stats["translucent_dropped"] = int(dropped.sum())
+    stats["entries_skipped_by_depth"] = int(stopped.sum())
+    return stats
+
+
+def _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opaque, trans, count,
+            polygon_range, dropped, stopped, fused, sky, earth, height, rgb) -> None:
     visibility_kernel(bins.start, bins.polygon, bins.full, bins.size, bins.tiles_x, view.width,
                       view.height, screen.start, edges.ia, edges.ib, edges.ic, edges.bias,
                       edges.x0, edges.x1, edges.y0, edges.y1, edges.nearest_inv_z,
@@ -112,12 +127,7 @@ def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opa
                       _offsets_fixed(offsets), SUBPIXEL, np.array(earth_dz_screen(view)),
                       np.array(screen_mapping(view)), any_translucent, with_range,
                       opaque, trans, count, polygon_range, dropped, stopped,
-                      fused is not None, screen.colour, sky, earth, earth_dz_row(view), height, rgb,
-                      numba.get_num_threads())
-    stats = dict(bins.stats)
-    stats["translucent_dropped"] = int(dropped.sum())
-    stats["entries_skipped_by_depth"] = int(stopped.sum())
-    return stats
+                      fused, screen.colour, sky, earth, earth_dz_row(view), height, rgb)
 
 
 def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np.ndarray, *,
