@@ -68,6 +68,9 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
     # allocated once per row of sub-areas. (The caller sets the parallel chunk size to 1.)
     tiles_y = n_tiles // tiles_x
     n_max = size * size * s_count
+    max_edges = 3
+    for p in range(poly_start.shape[0] - 1):
+        max_edges = max(max_edges, poly_start[p + 1] - poly_start[p])
     for row in prange(tiles_y):
         o_iz = np.empty(n_max, np.float64)
         o_id = np.empty(n_max, np.int32)
@@ -77,13 +80,15 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
         t_id = np.empty((n_t, k_max), np.int32)
         t_lay = np.empty((n_t, k_max), np.int32)
         t_cnt = np.zeros(n_t, np.int32)
+        e_cur = np.empty(max_edges, np.int64)
+        e_step = np.empty(max_edges, np.int64)
         for t in range(row * tiles_x, (row + 1) * tiles_x):
             _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
                   poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity, layer,
                   off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
                   out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
                   o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
-                  fused, colour, sky, earth, dz_row, height_above, out_rgb)
+                  fused, colour, sky, earth, dz_row, height_above, out_rgb, e_cur, e_step)
 
 
 @njit(cache=True)
@@ -92,7 +97,7 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
           off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
           out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
           o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
-          fused, colour, sky, earth, dz_row, height_above, out_rgb):
+          fused, colour, sky, earth, dz_row, height_above, out_rgb, e_cur, e_step):
     """One sub-area of visibility_kernel, with the chunk's sample store as scratch."""
     ty = t // tiles_x
     tx = t - ty * tiles_x
@@ -130,15 +135,33 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
         ly0 = max(y0[p], ty0)
         ly1 = min(y1[p], ty1 - 1)
         changed = False
-        for y in range(ly0, ly1 + 1):
-            for x in range(lx0, lx1 + 1):
-                base = ((y - ty0) * tw + (x - tx0)) * s_count
-                for s in range(s_count):
-                    px = x * subpixel + off_fixed[s, 0]
-                    py = y * subpixel + off_fixed[s, 1]
-                    if not full and not _inside(px, py, s0, s1, ia, ib, ic, bias):
-                        continue
-                    i = base + s
+        n_edges = s1 - s0
+        if not full:
+            for j in range(n_edges):
+                e_step[j] = ia[s0 + j] * subpixel
+        for s in range(s_count):
+            ox = off_fixed[s, 0]
+            oy = off_fixed[s, 1]
+            for y in range(ly0, ly1 + 1):
+                py = y * subpixel + oy
+                if not full:
+                    # Exact edge values (minus the top-left bias: inside iff all >= 0) at the
+                    # row's first sample, then stepped one pixel at a time: the same integers
+                    # the direct test computes, with one add per edge per sample.
+                    px0 = lx0 * subpixel + ox
+                    for j in range(n_edges):
+                        e_cur[j] = ia[s0 + j] * px0 + ib[s0 + j] * py + ic[s0 + j] - bias[s0 + j]
+                for x in range(lx0, lx1 + 1):
+                    if not full:
+                        ok = True
+                        for j in range(n_edges):
+                            if e_cur[j] < 0:
+                                ok = False
+                            e_cur[j] += e_step[j]
+                        if not ok:
+                            continue
+                    px = x * subpixel + ox
+                    i = ((y - ty0) * tw + (x - tx0)) * s_count + s
                     iz = a * (px * inv_sub) + b * (py * inv_sub) + c
                     if o_id[i] >= 0 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], o_id[i]):
                         continue
