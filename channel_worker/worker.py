@@ -118,6 +118,9 @@ class ChannelWorker:
         self.channel = channel
         # The compositor takes colour only: no per-pixel ranges.
         self.options = {"samples": samples, **(options or {}), "with_range": False}
+        # One colour array for every frame: it is encoded for the compositor before the next
+        # frame is rendered, and reusing it spares faulting in fresh pages each frame.
+        self._rgb = np.empty((channel.height, channel.width, 3), np.float32)
         self.once = once
         self.counters = WorkerCounters()
         #: Why the host refused this worker (its channel is not in the host's rig), else "".
@@ -235,7 +238,8 @@ class ChannelWorker:
             skipped = c.frames_skipped
         t0 = time.perf_counter()
         try:
-            image = render_frame(self.database, self.channel, eyepoint_of(frame.eyepoint), **self.options)
+            image = render_frame(self.database, self.channel, eyepoint_of(frame.eyepoint),
+                                 out=self._rgb, **self.options)
         except ValueError as exc:
             # The message names the field and value, e.g. "eyepoint.position[2]: nan is not finite".
             error = f"frame {number} refused: {exc}"

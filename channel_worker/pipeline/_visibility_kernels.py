@@ -107,10 +107,14 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
     ty1 = min(ty0 + size, height)
     tw = tx1 - tx0
     n = tw * (ty1 - ty0) * s_count
+    if fused and tile_start[t] == tile_start[t + 1] and not want_range:
+        # Nothing in the sub-area: the background alone, one colour unless the horizon
+        # crosses it. (Checked before the store is even cleared.)
+        if _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, out_rgb):
+            return
+    # Only the identities need clearing: 1/z and layer are read only where an identity is set.
     for i in range(n):
-        o_iz[i] = 0.0
         o_id[i] = -1
-        o_lay[i] = 0
     if any_translucent:
         for i in range(n):
             t_cnt[i] = 0
@@ -277,6 +281,28 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
                         out_trans[y, x, s, q] = t_id[i, q]
             if want_range:
                 out_range[y, x] = near_range
+
+
+@njit(cache=True)
+def _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, out_rgb):
+    """Fill the sub-area with sky or earth if the horizon line misses it; False if it crosses."""
+    kx, ky, k0 = horizon[0], horizon[1], horizon[2]
+    h00 = kx * tx0 + ky * ty0 + k0
+    h10 = kx * (tx0 + size) + ky * ty0 + k0
+    h01 = kx * tx0 + ky * (ty0 + size) + k0
+    h11 = kx * (tx0 + size) + ky * (ty0 + size) + k0
+    if h00 < 0.0 and h10 < 0.0 and h01 < 0.0 and h11 < 0.0:
+        cr, cg, cb = earth[0], earth[1], earth[2]
+    elif h00 >= 0.0 and h10 >= 0.0 and h01 >= 0.0 and h11 >= 0.0:
+        cr, cg, cb = sky[0], sky[1], sky[2]
+    else:
+        return False
+    for y in range(ty0, ty1):
+        for x in range(tx0, tx1):
+            out_rgb[y, x, 0] = cr
+            out_rgb[y, x, 1] = cg
+            out_rgb[y, x, 2] = cb
+    return True
 
 
 @njit(cache=True)

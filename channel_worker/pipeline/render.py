@@ -7,6 +7,8 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+import numpy as np
+
 from .backface import eliminate_backfaces
 from .binning import DEFAULT_SUBAREA, bin_features
 from .clip import clip
@@ -34,7 +36,7 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
                  samples: int | str = 4, renderer: str = "subarea", filter: str = "box",
                  subarea: int = DEFAULT_SUBAREA, max_translucent: int = DEFAULT_MAX_TRANSLUCENT,
                  with_range: bool = True, times: StageTimes | None = None,
-                 trace: dict | None = None) -> Image:
+                 trace: dict | None = None, out: np.ndarray | None = None) -> Image:
     """Render one channel's view of the database from the eyepoint.
 
     Args:
@@ -51,6 +53,8 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             skips a square root and a division per covered sample).
         times: if given, receives the seconds spent in each stage.
         trace: if given, receives the frame's "screen" polygons and sample "buffer".
+        out: (H, W, 3) float32 array the colours are written into (and returned as
+            Image.rgb); a caller rendering frame after frame passes the same one.
 
     Raises:
         ValueError: a non-finite eyepoint field, an impossible channel, an unknown pattern,
@@ -87,7 +91,7 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             # Default quality: pixels straight from each sub-area, no sample store in memory.
             with clock("visibility"):
                 return visible_pixels(screen, edges, bins, view, database, offsets,
-                                      max_translucent, with_range=with_range)
+                                      max_translucent, with_range=with_range, out=out)
         with clock("visibility"):
             buffer = resolve_visibility(screen, edges, bins, view, offsets, max_translucent,
                                         with_range=with_range)
@@ -98,7 +102,7 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             if not with_range:
                 buffer = dataclasses.replace(buffer, polygon_range=None)
     with clock("resolve"):
-        image = resolve(buffer, screen, view, database, filter)
+        image = resolve(buffer, screen, view, database, filter, out=out)
     if trace is not None:
         trace["screen"] = screen
         trace["buffer"] = buffer

@@ -9,7 +9,7 @@ import numpy as np
 from ._resolve_kernels import box_kernel, filter_kernel, shade_kernel
 from .horizon import earth_dz_row, height_above_earth
 from .project import screen_mapping
-from .types import Database, Image, SampleBuffer, ScreenPolygons, View
+from .types import Database, Image, SampleBuffer, ScreenPolygons, View, rgb_array
 
 
 def _box(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
@@ -53,7 +53,7 @@ def filter_weights(name: str, offsets: np.ndarray) -> np.ndarray:
 
 
 def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: Database,
-            filter: str = "box") -> Image:
+            filter: str = "box", out: np.ndarray | None = None) -> Image:
     """Pixel colours from the sample store and the pixel's nearest range.
 
     A sample's colour is its translucent features, nearest first, each covering opacity of
@@ -64,6 +64,7 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
         screen: the frame's polygons the store refers to.
         view, database: for the sky, the earth plane and the sample rays.
         filter: name in FILTERS.
+        out: optional (H, W, 3) float32 array to write the colours into.
 
     Returns:
         Image with linear RGB and range in metres (+inf where every sample sees sky), the
@@ -71,7 +72,7 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
     """
     check_filter(filter)
     h, w = view.height, view.width
-    rgb = np.empty((h, w, 3), np.float32)
+    rgb = rgb_array(out, h, w)
     want_range = buffer.polygon_range is not None
     range_m = np.empty((h, w) if want_range else (1, 1), np.float32)
     polygon_range = buffer.polygon_range if want_range else range_m

@@ -369,3 +369,17 @@ class Database:
             return 0
         last = int(self.instance_model[-1])
         return int(self.instance_face_base[-1]) + self.models[last].face_count
+
+
+def rgb_array(out: np.ndarray | None, height: int, width: int) -> np.ndarray:
+    """The caller's (H, W, 3) float32 colour array if it fits, else a new one.
+
+    Raises:
+        ValueError: out has the wrong shape, type or layout (named with what was expected).
+    """
+    if out is None:
+        return np.empty((height, width, 3), np.float32)
+    if out.shape != (height, width, 3) or out.dtype != np.float32 or not out.flags.c_contiguous:
+        raise ValueError(f"out: expected a C-contiguous float32 array of shape {(height, width, 3)}, "
+                         f"got {out.dtype} {out.shape}")
+    return out

@@ -26,7 +26,7 @@ from .binning import DEFAULT_SUBAREA, Bins, bin_features
 from .edges import Edges, setup_edges
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
-from .types import SUBPIXEL, Database, Image, SampleBuffer, ScreenPolygons, View
+from .types import SUBPIXEL, Database, Image, SampleBuffer, ScreenPolygons, View, rgb_array
 
 #: Default size of the per-sample translucent store.
 DEFAULT_MAX_TRANSLUCENT = 4
@@ -70,7 +70,8 @@ def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: V
 
 def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View, database: Database,
                    offsets: np.ndarray, max_translucent: int = DEFAULT_MAX_TRANSLUCENT, *,
-                   with_range: bool = True, stats: dict | None = None) -> Image:
+                   with_range: bool = True, stats: dict | None = None,
+                   out: np.ndarray | None = None) -> Image:
     """The same visibility with the box filter applied inside each sub-area (seed 000: "an
     output for each pixel within a sub-area"): no sample store is written, which is what makes
     the default quality fast. Identical to resolve(resolve_visibility(...), filter="box") up to
@@ -79,10 +80,12 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
     Args:
         database: for the sky and earth colours and the eye height above the earth.
         stats: if given, receives the visibility counters.
+        out: (H, W, 3) float32 array to write the colours into (a caller rendering frame after
+            frame keeps one, so the pages are not faulted in anew every frame).
     """
     k = check_max_translucent(max_translucent)
     h, w = view.height, view.width
-    rgb = np.empty((h, w, 3), np.float32)
+    rgb = rgb_array(out, h, w)
     range_m = np.empty((h, w) if with_range else (1, 1), np.float32)
     counters = _run(screen, edges, bins, view, offsets, k, bool((screen.opacity < 1.0).any()),
                     with_range, np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),

@@ -114,3 +114,16 @@ def test_unknown_sample_pattern_is_named(make_scene, box_model_factory):
 def test_nan_eyepoint_is_refused_naming_the_field(make_scene, box_model_factory):
     with pytest.raises(ValueError, match=r"eyepoint.position\[1\]: nan is not finite"):
         render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, float("nan"), 5, 0, 0, 0))
+
+
+def test_colours_can_be_written_into_the_callers_array(make_scene, box_model_factory):
+    db = scene(make_scene, box_model_factory)
+    eye = Eyepoint.of(0, 0, 5, 0, 0, 0)
+    expect = render_frame(db, CH, eye)
+    out = np.full((CH.height, CH.width, 3), np.nan, np.float32)
+    for filter in ("box", "tent"):
+        got = render_frame(db, CH, eye, filter=filter, out=out)
+        assert got.rgb is out and np.isfinite(out).all()
+    np.testing.assert_array_equal(render_frame(db, CH, eye, out=out).rgb, expect.rgb)
+    with pytest.raises(ValueError, match=r"out: expected a C-contiguous float32 array of shape \(48, 64, 3\)"):
+        render_frame(db, CH, eye, out=np.zeros((48, 64, 3), np.float64))
