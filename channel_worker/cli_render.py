@@ -44,8 +44,10 @@ def run(args: argparse.Namespace) -> int:
                                         roll_deg=args.channel_hpr[2])
         eyepoint = Eyepoint.of(*args.eye, *args.hpr)
         times = StageTimes()
+        stats: dict[str, int] = {}
         t0 = time.perf_counter()
-        image = render_frame(database, channel, eyepoint, times=times, **quality_options(args))
+        image = render_frame(database, channel, eyepoint, times=times, stats=stats,
+                             **quality_options(args))
         elapsed = time.perf_counter() - t0
     except (SceneError, ValueError) as exc:
         print(f"ig render: error: {exc}", file=sys.stderr)
@@ -68,5 +70,7 @@ def run(args: argparse.Namespace) -> int:
     if args.times:
         for stage, seconds in times.seconds.items():
             print(f"{stage:>10} {seconds * 1000:9.2f} ms")
+        for name, value in stats.items():
+            print(f"{name:>24} {value}")
     print(f"wrote {args.out} ({channel.width} x {channel.height}, {elapsed * 1000:.1f} ms)")
     return 0

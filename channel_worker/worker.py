@@ -46,6 +46,7 @@ class WorkerCounters:
     frames_refused: int = 0
     submit_failures: int = 0
     ack_failures: int = 0
+    translucent_dropped: int = 0
     last_frame_number: int = 0
     run_id: str = ""
     last_error: str = ""
@@ -238,8 +239,11 @@ class ChannelWorker:
             skipped = c.frames_skipped
         t0 = time.perf_counter()
         try:
+            stats: dict[str, int] = {}
             image = render_frame(self.database, self.channel, eyepoint_of(frame.eyepoint),
-                                 out=self._rgb, **self.options)
+                                 out=self._rgb, stats=stats, **self.options)
+            with self._lock:
+                self.counters.translucent_dropped += stats.get("translucent_dropped", 0)
         except ValueError as exc:
             # The message names the field and value, e.g. "eyepoint.position[2]: nan is not finite".
             error = f"frame {number} refused: {exc}"

@@ -36,7 +36,8 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
                  samples: int | str = 4, renderer: str = "subarea", filter: str = "box",
                  subarea: int = DEFAULT_SUBAREA, max_translucent: int = DEFAULT_MAX_TRANSLUCENT,
                  with_range: bool = True, times: StageTimes | None = None,
-                 trace: dict | None = None, out: np.ndarray | None = None) -> Image:
+                 trace: dict | None = None, out: np.ndarray | None = None,
+                 stats: dict | None = None) -> Image:
     """Render one channel's view of the database from the eyepoint.
 
     Args:
@@ -55,6 +56,8 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
         trace: if given, receives the frame's "screen" polygons and sample "buffer".
         out: (H, W, 3) float32 array the colours are written into (and returned as
             Image.rgb); a caller rendering frame after frame passes the same one.
+        stats: if given, receives the visibility counters (SampleBuffer.stats), among them
+            "translucent_dropped".
 
     Raises:
         ValueError: a non-finite eyepoint field, an impossible channel, an unknown pattern,
@@ -91,7 +94,8 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             # Default quality: pixels straight from each sub-area, no sample store in memory.
             with clock("visibility"):
                 return visible_pixels(screen, edges, bins, view, database, offsets,
-                                      max_translucent, with_range=with_range, out=out)
+                                      max_translucent, with_range=with_range, out=out,
+                                      stats=stats)
         with clock("visibility"):
             buffer = resolve_visibility(screen, edges, bins, view, offsets, max_translucent,
                                         with_range=with_range)
@@ -103,6 +107,8 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
                 buffer = dataclasses.replace(buffer, polygon_range=None)
     with clock("resolve"):
         image = resolve(buffer, screen, view, database, filter, out=out)
+    if stats is not None:
+        stats.update(buffer.stats)
     if trace is not None:
         trace["screen"] = screen
         trace["buffer"] = buffer

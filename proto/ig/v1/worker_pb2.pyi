@@ -9,7 +9,7 @@ class GetWorkerStatusRequest(_message.Message):
     def __init__(self) -> None: ...
 
 class GetWorkerStatusResponse(_message.Message):
-    __slots__ = ("channel_name", "subscribed", "run_id", "last_frame_number", "frames_handled", "frames_rendered", "frames_skipped", "frames_refused", "submit_failures", "ack_failures", "last_error")
+    __slots__ = ("channel_name", "subscribed", "run_id", "last_frame_number", "frames_handled", "frames_rendered", "frames_skipped", "frames_refused", "submit_failures", "ack_failures", "last_error", "translucent_dropped")
     CHANNEL_NAME_FIELD_NUMBER: _ClassVar[int]
     SUBSCRIBED_FIELD_NUMBER: _ClassVar[int]
     RUN_ID_FIELD_NUMBER: _ClassVar[int]
@@ -21,6 +21,7 @@ class GetWorkerStatusResponse(_message.Message):
     SUBMIT_FAILURES_FIELD_NUMBER: _ClassVar[int]
     ACK_FAILURES_FIELD_NUMBER: _ClassVar[int]
     LAST_ERROR_FIELD_NUMBER: _ClassVar[int]
+    TRANSLUCENT_DROPPED_FIELD_NUMBER: _ClassVar[int]
     channel_name: str
     subscribed: bool
     run_id: str
@@ -32,4 +33,5 @@ class GetWorkerStatusResponse(_message.Message):
     submit_failures: int
     ack_failures: int
     last_error: str
-    def __init__(self, channel_name: _Optional[str] = ..., subscribed: _Optional[bool] = ..., run_id: _Optional[str] = ..., last_frame_number: _Optional[int] = ..., frames_handled: _Optional[int] = ..., frames_rendered: _Optional[int] = ..., frames_skipped: _Optional[int] = ..., frames_refused: _Optional[int] = ..., submit_failures: _Optional[int] = ..., ack_failures: _Optional[int] = ..., last_error: _Optional[str] = ...) -> None: ...
+    translucent_dropped: int
+    def __init__(self, channel_name: _Optional[str] = ..., subscribed: _Optional[bool] = ..., run_id: _Optional[str] = ..., last_frame_number: _Optional[int] = ..., frames_handled: _Optional[int] = ..., frames_rendered: _Optional[int] = ..., frames_skipped: _Optional[int] = ..., frames_refused: _Optional[int] = ..., submit_failures: _Optional[int] = ..., ack_failures: _Optional[int] = ..., last_error: _Optional[str] = ..., translucent_dropped: _Optional[int] = ...) -> None: ...

@@ -93,10 +93,15 @@ def test_fused_box_path_equals_sample_store_and_resolve(samples, with_range):
     ch = ChannelSpec.symmetric("c", 160, 96, 60.0)
     # The control tower (its glass cab at 17.6-20.6 m) 60 m ahead, hangars and sky behind.
     eye = Eyepoint.of(-140.0, -660.0, 19.0, 0.0, 2.0, 5.0)
-    fused = render_frame(db, ch, eye, samples=samples, with_range=with_range)
+    fused_stats: dict = {}
+    fused = render_frame(db, ch, eye, samples=samples, with_range=with_range, max_translucent=1,
+                         stats=fused_stats)
     trace: dict = {}
-    stored = render_frame(db, ch, eye, samples=samples, with_range=with_range, trace=trace)
+    stored_stats: dict = {}
+    stored = render_frame(db, ch, eye, samples=samples, with_range=with_range, max_translucent=1,
+                          trace=trace, stats=stored_stats)
     assert (trace["buffer"].translucent_count > 0).any()
+    assert fused_stats == stored_stats
     np.testing.assert_allclose(fused.rgb, stored.rgb, rtol=0, atol=2e-6)
     if with_range:
         np.testing.assert_allclose(fused.range_m, stored.range_m, rtol=1e-6)
@@ -127,3 +132,24 @@ def test_colours_can_be_written_into_the_callers_array(make_scene, box_model_fac
     np.testing.assert_array_equal(render_frame(db, CH, eye, out=out).rgb, expect.rgb)
     with pytest.raises(ValueError, match=r"out: expected a C-contiguous float32 array of shape \(48, 64, 3\)"):
         render_frame(db, CH, eye, out=np.zeros((48, 64, 3), np.float64))
+
+
+def test_a_full_translucent_store_drops_the_farthest_and_says_so(make_scene, box_model_factory):
+    """Two panes in front of a wall, a store of one: the near pane is kept, the far one counted."""
+    def pane(y: float, colour: str) -> dict:
+        v = [[-50, y, -50], [50, y, -50], [50, y, 50], [-50, y, 50]]
+        return {"vertices": v, "faces": [{"indices": [0, 1, 2, 3], "colour": colour, "opacity": 0.5}]}
+    db = make_scene({"wall": box_model_factory(200, 1, 200, "#ffffff"), "near": pane(20, "#ff0000"),
+                     "far": pane(30, "#0000ff")},
+                    [{"model": "wall", "position": [0, 100, -100]}, {"model": "near", "position": [0, 0, 5]},
+                     {"model": "far", "position": [0, 0, 5]}])
+    eye = Eyepoint.of(0, 0, 5, 0, 0, 0)
+    for filter in ("box", "tent"):
+        stats: dict = {}
+        img = render_frame(db, CH, eye, samples=1, max_translucent=1, filter=filter, stats=stats)
+        assert stats["translucent_dropped"] == CH.width * CH.height
+        np.testing.assert_allclose(img.rgb[24, 32], [0.5 + 0.5, 0.5, 0.5], atol=1e-6)
+        stats = {}
+        img = render_frame(db, CH, eye, samples=1, max_translucent=2, filter=filter, stats=stats)
+        assert stats["translucent_dropped"] == 0
+        np.testing.assert_allclose(img.rgb[24, 32], [0.5 + 0.25, 0.25, 0.25 + 0.25], atol=1e-6)
