@@ -18,9 +18,15 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest
 
+# bench_visibility.py compares with Mesa's llvmpipe: moderngl comes with the [bench] extra, Mesa's
+# EGL and software rasterizer are Debian packages, installed here if missing (as root).
 bench: $(STAMP)
 	$(PY) -m pip install -e '.[bench]'
+	@ldconfig -p | grep -q libEGL_mesa || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null \
+	  && apt-get update -qq && apt-get install -y -qq libegl-mesa0 libgl1-mesa-dri; } \
+	  || echo "bench: no Mesa EGL; bench_visibility.py will report llvmpipe as unavailable"
 	$(PY) bench/bench_render.py
+	$(PY) bench/bench_visibility.py
 
 # Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.
 proto: $(STAMP)
