@@ -80,7 +80,6 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
         t_id = np.empty((n_t, k_max), np.int32)
         t_lay = np.empty((n_t, k_max), np.int32)
         t_cnt = np.zeros(n_t, np.int32)
-        e_cur = np.empty(max_edges, np.int64)
         e_step = np.empty(max_edges, np.int64)
         for t in range(row * tiles_x, (row + 1) * tiles_x):
             _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
@@ -88,7 +87,7 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
                   off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
                   out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
                   o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
-                  fused, colour, sky, earth, dz_row, height_above, out_rgb, e_cur, e_step)
+                  fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step)
 
 
 @njit(cache=True)
@@ -97,7 +96,7 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
           off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
           out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
           o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
-          fused, colour, sky, earth, dz_row, height_above, out_rgb, e_cur, e_step):
+          fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step):
     """One sub-area of visibility_kernel, with the chunk's sample store as scratch."""
     ty = t // tiles_x
     tx = t - ty * tiles_x
@@ -118,6 +117,14 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
     if any_translucent:
         for i in range(n):
             t_cnt[i] = 0
+    # Sub-areas with no translucent feature in their list take the opaque-only path even in
+    # a frame that has translucent features elsewhere.
+    trans_here = False
+    if any_translucent:
+        for k in range(tile_start[t], tile_start[t + 1]):
+            if opacity[entry_polygon[k]] < 1.0:
+                trans_here = True
+                break
     covered = 0
     # The farthest stored opaque 1/z only grows as nearer features replace samples, so a stale
     # value is a safe lower bound; it is recomputed only when a stop might be missed by it.
@@ -148,11 +155,11 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
         lx1 = min(x1[p], tx1 - 1)
         ly0 = max(y0[p], ty0)
         ly1 = min(y1[p], ty1 - 1)
-        if opaque and not any_translucent:
+        if opaque and not trans_here:
             # The common case in its own small function: fewer live values, better code.
             added = _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, tw,
                                   s_count, off_fixed, subpixel, inv_sub, ia, ib, ic, bias,
-                                  o_iz, o_id, o_lay, e_cur, e_step)
+                                  o_iz, o_id, o_lay, e_step)
             if added >= 0:
                 covered += added
                 stale = True
@@ -167,23 +174,12 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
             oy = off_fixed[s, 1]
             for y in range(ly0, ly1 + 1):
                 py = y * subpixel + oy
+                klo = 0
+                khi = lx1 - lx0
                 if not full:
-                    # Exact edge values (minus the top-left bias: inside iff all >= 0) at the
-                    # row's first sample, then stepped one pixel at a time: the same integers
-                    # the direct test computes, with one add per edge per sample.
-                    px0 = lx0 * subpixel + ox
-                    for j in range(n_edges):
-                        e_cur[j] = ia[s0 + j] * px0 + ib[s0 + j] * py + ic[s0 + j] - bias[s0 + j]
-                for x in range(lx0, lx1 + 1):
-                    if not full:
-                        # The OR of the edge values is negative iff one of them is: no branch
-                        # per edge.
-                        sign = 0
-                        for j in range(n_edges):
-                            sign |= e_cur[j]
-                            e_cur[j] += e_step[j]
-                        if sign < 0:
-                            continue
+                    klo, khi = _row_span(n_edges, s0, ia, ib, ic, bias, e_step,
+                                         lx0 * subpixel + ox, py, khi)
+                for x in range(lx0 + klo, lx0 + khi + 1):
                     px = x * subpixel + ox
                     i = ((y - ty0) * tw + (x - tx0)) * s_count + s
                     iz = a * (px * inv_sub) + (b * (py * inv_sub) + c)
@@ -301,9 +297,34 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
                 out_range[y, x] = near_range
 
 
+@njit(cache=True, inline="always")
+def _row_span(n_edges, s0, ia, ib, ic, bias, e_step, px0, py, span):
+    """(first, last) k in 0..span with the sample at px0 + k * SUBPIXEL, py inside every edge
+    (first > last if none): the covered run of one row of samples, solved exactly per edge.
+
+    Edge j's value at the k-th sample, less its top-left bias, is e0 + step * k in integers
+    (step = ia * SUBPIXEL), inside iff >= 0, so each edge bounds k from one side.
+    """
+    klo = 0
+    khi = span
+    for j in range(n_edges):
+        e0 = ia[s0 + j] * px0 + ib[s0 + j] * py + ic[s0 + j] - bias[s0 + j]
+        step = e_step[j]
+        if step > 0:
+            if e0 < 0:
+                klo = max(klo, (step - 1 - e0) // step)  # ceil(-e0 / step), both positive
+        elif step < 0:
+            if e0 < 0:
+                return 1, 0
+            khi = min(khi, e0 // -step)  # floor(e0 / -step); guard: step != 0 here
+        elif e0 < 0:
+            return 1, 0
+    return klo, khi
+
+
 @njit(cache=True)
 def _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, tw, s_count,
-                  off_fixed, subpixel, inv_sub, ia, ib, ic, bias, o_iz, o_id, o_lay, e_cur, e_step):
+                  off_fixed, subpixel, inv_sub, ia, ib, ic, bias, o_iz, o_id, o_lay, e_step):
     """Depth-test one opaque polygon into the store of a sub-area with no translucency.
 
     Returns the number of samples newly covered, or -1 if no sample changed.
@@ -314,25 +335,22 @@ def _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, t
             e_step[j] = ia[s0 + j] * subpixel
     added = 0
     changed = False
+    span = lx1 - lx0
     for s in range(s_count):
         ox = off_fixed[s, 0]
         oy = off_fixed[s, 1]
         for y in range(ly0, ly1 + 1):
             py = y * subpixel + oy
+            klo = 0
+            khi = span
             if not full:
-                px0 = lx0 * subpixel + ox
-                for j in range(n_edges):
-                    e_cur[j] = ia[s0 + j] * px0 + ib[s0 + j] * py + ic[s0 + j] - bias[s0 + j]
+                klo, khi = _row_span(n_edges, s0, ia, ib, ic, bias, e_step, lx0 * subpixel + ox,
+                                     py, span)
+                if klo > khi:
+                    continue
             row = ((y - ty0) * tw - tx0) * s_count + s
             fy = b * (py * inv_sub) + c
-            for x in range(lx0, lx1 + 1):
-                if not full:
-                    sign = 0
-                    for j in range(n_edges):
-                        sign |= e_cur[j]
-                        e_cur[j] += e_step[j]
-                    if sign < 0:
-                        continue
+            for x in range(lx0 + klo, lx0 + khi + 1):
                 px = x * subpixel + ox
                 i = row + x * s_count
                 # Same expression, same order as in _tile: a * sx + (b * sy + c) is evaluated
