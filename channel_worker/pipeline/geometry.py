@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from ._geometry_kernels import transform_kernel
 from .types import ChannelSpec, Database, DrawList, Eyepoint, Polygons, View
 
 
@@ -98,28 +99,28 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
     model = database.instance_model[draws.instance_index]
     corners = table.corner_count[model]  # face-vertex slots per drawn instance
     faces = table.face_count[model]
-    corner_inst = np.repeat(np.arange(n), corners)
     face_inst = np.repeat(np.arange(n), faces)
-    corner_rows = index_ranges(table.corner_base[model], corners)
     face_rows = index_ranges(table.face_base[model], faces)
 
-    to_eye_rot = view.world_to_eye @ draws.rotation  # (n, 3, 3) model -> eye
+    to_eye_rot = np.ascontiguousarray(view.world_to_eye @ draws.rotation)  # (n, 3, 3) model -> eye
     rel = (draws.position - view.eye) @ view.world_to_eye.T  # instance origins, eye frame
-    local = table.corner_xyz[corner_rows]
-    eye_verts = np.einsum("nij,nj->ni", to_eye_rot[corner_inst], local) + rel[corner_inst]
-
-    model_n = table.normal[face_rows]
-    normal = np.einsum("nij,nj->ni", to_eye_rot[face_inst], model_n)
-    world_n = np.einsum("nij,nj->ni", draws.rotation[face_inst], model_n)
-    light = database.ambient + (1.0 - database.ambient) * np.clip(world_n @ database.sun, 0.0, 1.0)
-
-    sizes = table.face_size[face_rows]
-    start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    n_corners = int(corners.sum())
+    n_faces = int(faces.sum())
+    eye_verts = np.empty((n_corners, 3))
+    normal = np.empty((n_faces, 3))
+    sun_dot = np.empty(n_faces)
+    d = np.empty(n_faces)
     # The plane offset comes from the face's plane point (its own first vertex, or that of the
     # face it lies on), transformed exactly like the vertices, so coplanar faces of one
     # instance get bit-identical planes and their depth ties are decided by layer alone.
-    plane_pt = np.einsum("nij,nj->ni", to_eye_rot[face_inst], table.plane_xyz[face_rows]) + rel[face_inst]
-    d = np.einsum("ij,ij->i", normal, plane_pt)
+    transform_kernel(to_eye_rot, np.ascontiguousarray(draws.rotation), np.ascontiguousarray(rel),
+                     table.corner_base[model], corners, table.face_base[model], faces,
+                     table.corner_xyz, table.normal, table.plane_xyz, eye_verts, normal, sun_dot, d,
+                     np.asarray(database.sun, np.float64))
+    light = database.ambient + (1.0 - database.ambient) * np.clip(sun_dot, 0.0, 1.0)
+
+    sizes = table.face_size[face_rows]
+    start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
     ids = database.instance_face_base[draws.instance_index][face_inst] + table.local_face[face_rows]
     return Polygons(
         verts=eye_verts,
