@@ -18,6 +18,7 @@ from .geometry import make_view, to_eye
 from .project import project
 from .resolve import check_filter, resolve
 from .samples import sample_pattern
+from .scanline import scanline_visibility
 from .types import ChannelSpec, Database, Eyepoint, Image, StageTimes
 from .visibility import (
     DEFAULT_MAX_TRANSLUCENT,
@@ -100,7 +101,6 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             buffer = resolve_visibility(screen, edges, bins, view, offsets, max_translucent,
                                         with_range=with_range)
     else:
-        from .scanline import scanline_visibility  # TEMP until helper lands
         with clock("scanline"):
             buffer = scanline_visibility(screen, view, database, max_translucent=max_translucent)
             if not with_range:
