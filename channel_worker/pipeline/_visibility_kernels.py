@@ -491,7 +491,8 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
 @njit(cache=True, parallel=True)
 def coverage_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
                     poly_start, ia, ib, ic, bias, x0, x1, y0, y1, off_fixed, subpixel, out_count):
-    """How many polygons cover each sample, by the same lists and tests as visibility_kernel."""
+    """How many polygons cover each sample: the same lists as visibility_kernel, but each
+    sample decided by the direct edge test (_inside), independently of its row solver."""
     n_tiles = tile_start.shape[0] - 1
     s_count = off_fixed.shape[0]
     for t in prange(n_tiles):

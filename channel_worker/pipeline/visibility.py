@@ -137,8 +137,10 @@ def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np
                     subarea: int = DEFAULT_SUBAREA) -> np.ndarray:
     """(H, W, S) int32: how many polygons cover each sample, ignoring depth.
 
-    Uses exactly the renderer's edge setup, sub-area classification and per-sample tests, so
-    it is what the watertightness properties are checked on (a mesh covers each sample once).
+    Uses the renderer's edge setup and sub-area classification, but decides each sample with
+    the direct exact edge test instead of the renderer's per-row run solver: the property
+    tests check that a mesh covers each sample once here, and that the renderer's own store
+    agrees with this sample for sample.
     """
     edges = setup_edges(screen, width, height)
     bins = bin_features(edges, screen.start, width, height, subarea)
