@@ -103,8 +103,12 @@ def main(argv: list[str] | None = None) -> int:
     from bench_render import machine  # bench/ is on the path when run as a script
     from llvmpipe import run_llvmpipe
 
-    from bench.scenes.approach import (approach_channel, approach_eyepoint, approach_scene,
-                                       scene_counts)
+    from bench.scenes.approach import (
+        approach_channel,
+        approach_eyepoint,
+        approach_scene,
+        scene_counts,
+    )
     from channel_worker.pipeline.binning import DEFAULT_SUBAREA
     from channel_worker.pipeline.render import render_frame
     from channel_worker.pipeline.samples import sample_pattern
@@ -230,6 +234,12 @@ def main(argv: list[str] | None = None) -> int:
     ]
 
     print_table(rows, stages, llvmpipe, ours4, ratio, targets, subarea_choice)
+    exact = exact_reference_errors(args.quick)
+    print("\nerror against the exact area coverage (shapely), plates of known depth order, "
+          f"{exact['width']} x {exact['height']}:")
+    for row in exact["patterns"]:
+        print(f"  {row['pattern']:7s} S={row['samples']:2d} rmse {row['rmse']:.4f}  "
+              f"max abs {row['max_abs']:.4f}  {row['ms']:.1f} ms")
     report = {
         "benchmark": "visibility on the approach scene, one core, per sample pattern, "
                      "against Mesa llvmpipe",
@@ -273,6 +283,7 @@ def main(argv: list[str] | None = None) -> int:
                        "llvmpipe_lp_num_threads": llvmpipe.get("lp_num_threads"),
                        "ratio_ours_over_llvmpipe": ratio},
         "targets": targets,
+        "exact_reference": exact,
     }
     json_path = args.out / "visibility.json"
     json_path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
@@ -290,6 +301,47 @@ def main(argv: list[str] | None = None) -> int:
         written.append(fig)
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+def exact_reference_errors(quick: bool) -> dict[str, Any]:
+    """Every pattern's error against the exact per-pixel area coverage (shapely polygon
+    clipping, channel_worker/testing/coverage_reference.py) on flat plates of known depth
+    order (channel_worker/testing/plates.py): the accuracy the tests bound, as speed against
+    error. The approach scene's order is not known (crossing billboards), hence this scene."""
+    from channel_worker.pipeline.render import render_frame
+    from channel_worker.pipeline.samples import sample_pattern
+    from channel_worker.pipeline.scene import parse_scene
+    from channel_worker.pipeline.types import ChannelSpec, Eyepoint
+    from channel_worker.testing.coverage_reference import (
+        depth_order,
+        reference_pixels,
+        sky_backdrop,
+    )
+    from channel_worker.testing.plates import OVERHEAD_EYEPOINT, overhead_scene_doc
+
+    width, height = (160, 120) if quick else (640, 480)
+    db = parse_scene(overhead_scene_doc(), source="plates")
+    channel = ChannelSpec.symmetric("plates", width, height, 60.0)
+    eye = Eyepoint.of(*OVERHEAD_EYEPOINT)
+    trace: dict = {}
+    render_frame(db, channel, eye, samples="centre", trace=trace)
+    screen = trace["screen"]
+    t0 = time.perf_counter()
+    ref = reference_pixels(screen, width, height, depth_order(screen), sky_backdrop(db)).rgb
+    ref_s = time.perf_counter() - t0
+    out = np.empty((height, width, 3), np.float32)
+    rows = []
+    for pattern in PATTERNS:
+        render_frame(db, channel, eye, samples=pattern, out=out)  # compile, warm
+        t0 = time.perf_counter()
+        render_frame(db, channel, eye, samples=pattern, out=out)
+        ms = (time.perf_counter() - t0) * 1000.0
+        err = np.abs(out.astype(np.float64) - ref)
+        rows.append({"pattern": pattern, "samples": int(sample_pattern(pattern).shape[0]),
+                     "rmse": float(np.sqrt(np.mean(err ** 2))), "max_abs": float(err.max()),
+                     "ms": ms})
+    return {"scene": "channel_worker/testing/plates.py overhead plates (8, two translucent)",
+            "width": width, "height": height, "reference_seconds": ref_s, "patterns": rows}
 
 
 def print_table(rows: list[dict[str, Any]], stages: list[str], llvmpipe: dict[str, Any],
