@@ -57,8 +57,6 @@ _PLANE_TOL_M = 1e-3
 # (docs/scene-format.md: the earth is always drawn behind polygons); markings lie in the plane
 # of the pavement they are painted on and are declared "on" it (layer order, no offset).
 PAVEMENT_Z = 0.02
-#: Gap between a wall and a decal painted on it (a door, a window band), metres.
-DECAL_OFFSET_M = 0.05
 
 RUNWAY_LENGTH_M = 2000.0
 RUNWAY_WIDTH_M = 45.0
@@ -231,11 +229,22 @@ def ground_rects(rects: Iterable[tuple[float, float, float, float]], z: float, c
     return make_part(vertices, faces, facing=(0.0, 0.0, 1.0))
 
 
-def wall_rect(x0: float, x1: float, z0: float, z1: float, y: float, colour: str) -> Part:
-    """A rectangle on the plane y = const facing +y (a door or window band on a front wall)."""
+def wall_rect(x0: float, x1: float, z0: float, z1: float, y: float, colour: str, *,
+              on: int | None = None) -> Part:
+    """A rectangle on the plane y = const facing +y (a door or window band on a front wall);
+    on: the model face (the wall) it is painted on."""
     # Seen from +y the x axis points left, so counter-clockwise runs from +x to -x along the bottom.
     return make_part([(x1, y, z0), (x0, y, z0), (x0, y, z1), (x1, y, z1)],
-                     [Face((0, 1, 2, 3), colour)], facing=(0.0, 1.0, 0.0))
+                     [Face((0, 1, 2, 3), colour, on=on)], facing=(0.0, 1.0, 0.0))
+
+
+def facing_face(part: Part, direction: Sequence[float]) -> int:
+    """Index of the part's face whose outward normal is `direction` (the wall to paint on)."""
+    for k, face in enumerate(part.faces):
+        n = newell_normal([part.vertices[i] for i in face.indices])
+        if _dot(n, direction) > 1.0 - 1e-9:
+            return k
+    raise GeometryError(f"no face of the part faces {tuple(direction)}")
 
 
 def loft(a: Sequence[Vec3], b: Sequence[Vec3], side_colours: str | Sequence[str | None], *,
@@ -401,7 +410,9 @@ def gable_building(width: float, depth: float, eaves: float, ridge: float, walls
     parts = [body]
     if door is not None:
         dw, dh, colour = door
-        parts.append(wall_rect(-dw / 2.0, dw / 2.0, 0.0, dh, hd + DECAL_OFFSET_M, colour))
+        # Painted on the front wall (the body is the model's first part: its face k is k).
+        parts.append(wall_rect(-dw / 2.0, dw / 2.0, 0.0, dh, hd, colour,
+                               on=facing_face(body, (0.0, 1.0, 0.0))))
     return parts
 
 
@@ -410,10 +421,12 @@ def flat_roof_building(width: float, depth: float, height: float, walls: str, ro
     """A box building, `width` across its front (x) by `depth` (y) by `height`, metres.
     band = (z0, z1, colour) paints a window band along the front wall."""
     hw, hd = width / 2.0, depth / 2.0
-    parts = [box(-hw, hw, -hd, hd, 0.0, height, walls, top=roof)]
+    body = box(-hw, hw, -hd, hd, 0.0, height, walls, top=roof)
+    parts = [body]
     if band is not None:
         z0, z1, colour = band
-        parts.append(wall_rect(-hw + 2.0, hw - 2.0, z0, z1, hd + DECAL_OFFSET_M, colour))
+        parts.append(wall_rect(-hw + 2.0, hw - 2.0, z0, z1, hd, colour,
+                               on=facing_face(body, (0.0, 1.0, 0.0))))
     return parts
 
 
