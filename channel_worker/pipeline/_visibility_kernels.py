@@ -106,10 +106,12 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
     ty1 = min(ty0 + size, height)
     tw = tx1 - tx0
     n = tw * (ty1 - ty0) * s_count
-    if fused and tile_start[t] == tile_start[t + 1] and not want_range:
+    if fused and tile_start[t] == tile_start[t + 1]:
         # Nothing in the sub-area: the background alone, one colour unless the horizon
-        # crosses it. (Checked before the store is even cleared.)
-        if _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, out_rgb):
+        # crosses it (and, with ranges, only if it is sky: the earth's range varies).
+        # Checked before the store is even cleared.
+        if _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, want_range,
+                            out_rgb, out_range):
             return
     # Only the identities need clearing: 1/z and layer are read only where an identity is set.
     for i in range(n):
@@ -369,14 +371,16 @@ def _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, t
 
 
 @njit(cache=True)
-def _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, out_rgb):
-    """Fill the sub-area with sky or earth if the horizon line misses it; False if it crosses."""
+def _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, want_range, out_rgb,
+                     out_range):
+    """Fill the sub-area with sky or earth if the horizon line misses it (with ranges: only
+    with sky, range +inf); False if it was not filled."""
     kx, ky, k0 = horizon[0], horizon[1], horizon[2]
     h00 = kx * tx0 + ky * ty0 + k0
     h10 = kx * (tx0 + size) + ky * ty0 + k0
     h01 = kx * tx0 + ky * (ty0 + size) + k0
     h11 = kx * (tx0 + size) + ky * (ty0 + size) + k0
-    if h00 < 0.0 and h10 < 0.0 and h01 < 0.0 and h11 < 0.0:
+    if h00 < 0.0 and h10 < 0.0 and h01 < 0.0 and h11 < 0.0 and not want_range:
         cr, cg, cb = earth[0], earth[1], earth[2]
     elif h00 >= 0.0 and h10 >= 0.0 and h01 >= 0.0 and h11 >= 0.0:
         cr, cg, cb = sky[0], sky[1], sky[2]
@@ -387,6 +391,8 @@ def _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, out_rgb):
             out_rgb[y, x, 0] = cr
             out_rgb[y, x, 1] = cg
             out_rgb[y, x, 2] = cb
+            if want_range:
+                out_range[y, x] = np.inf
     return True
 
 
