@@ -1,12 +1,26 @@
-"""`ig host`: publish the bundled flight's eyepoints, frame-locked to the rig's channels."""
+"""`ig host`: publish eyepoints frame-locked to the rig's channels.
+
+The eyepoints come from one of:
+- the bundled scripted flight (default);
+- the flight model flown by cockpit controls (`--controls URL`, repeatable; docs/host-inputs.md);
+- a flight log (`--replay FILE`; docs/replay-formats.md).
+"""
 
 from __future__ import annotations
 
 import argparse
+import logging
+import math
 import threading
 
 from services.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error,
                                  load_rig_or_report, non_negative, positive)
+
+log = logging.getLogger("ig.host")
+
+#: Simulated seconds of a run that has no natural end (controls, a looping replay) when no
+#: --duration is given: it runs until SIGTERM.
+UNTIL_STOPPED_S = 1e9
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -14,7 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_rig_arguments(parser)
     parser.add_argument("--rate", type=positive, default=60.0, help="frame rate, Hz (default 60)")
     parser.add_argument("--duration", type=non_negative, default=None,
-                        help="simulated seconds to publish (default: the whole bundled flight)")
+                        help="simulated seconds to publish (default: the whole bundled flight or replay; "
+                             "until stopped with --controls or --loop)")
     parser.add_argument("--sync-timeout", type=positive, default=10.0,
                         help="longest wait for every channel's acknowledgement of a frame, seconds (default 10)")
     parser.add_argument("--start-timeout", type=non_negative, default=120.0,
@@ -22,11 +37,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "frame, seconds (default 120)")
     parser.add_argument("--observers", type=int, default=1,
                         help="observers (the compositor) to wait for before the first frame (default 1)")
+    source = parser.add_mutually_exclusive_group()
+    source.add_argument("--controls", action="append", metavar="URL", default=None,
+                        help="fly the flight model with this control source; repeat for several, first has "
+                             "priority (can://socketcan/can0, can://slcan/dev/ttyACM0@115200, "
+                             "serial:///dev/ttyUSB0?baud=115200, canlog:///path/log.asc; docs/host-inputs.md)")
+    source.add_argument("--replay", metavar="FILE", default=None,
+                        help="replay a flight log (.csv, .igc, .fdr, .ulg; docs/replay-formats.md)")
+    parser.add_argument("--replay-format", choices=["auto", "csv", "igc", "fdr", "ulog"], default="auto",
+                        help="format of --replay (default: from the file name)")
+    parser.add_argument("--speed", type=positive, default=1.0,
+                        help="replay speed, log seconds per simulated second (default 1)")
+    parser.add_argument("--start", type=non_negative, default=0.0,
+                        help="replay from this many seconds after the log's first record (default 0)")
+    parser.add_argument("--loop", action="store_true", help="replay again from --start after the end of the log")
+    parser.add_argument("--replay-origin", type=_origin, default=None, metavar="LAT,LON,H",
+                        help="geodetic reference point of the world frame for a geodetic log, degrees and "
+                             "metres (default: the log's first fix)")
+    parser.add_argument("--stale-after", type=positive, default=None, metavar="S",
+                        help="flag a control source stale after this many seconds without good input "
+                             "(default 0.5; a URL's stale_after= overrides it)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Serve HostService until the run ends or SIGTERM; 0 ok, 1 cannot listen, 2 bad input."""
-    from host_sim.flight import bundled_flight
     from host_sim.publisher import FramePublisher
     from host_sim.server import serve
     from services.grpc_util import configure_logging, stop_on_signals
@@ -36,20 +70,97 @@ def run(args: argparse.Namespace) -> int:
     rig = load_rig_or_report(args.rig, "host")
     if rig is None:
         return EXIT_BAD_INPUT
-    flight = bundled_flight()
-    duration = flight.duration_s if args.duration is None else args.duration
+    for needs, given, flags in (("--replay", args.replay is not None, (
+            ("--replay-format", args.replay_format != "auto"), ("--speed", args.speed != 1.0),
+            ("--start", args.start != 0.0), ("--loop", args.loop), ("--replay-origin", args.replay_origin))),
+            ("--controls", bool(args.controls), (("--stale-after", args.stale_after is not None),))):
+        misplaced = [flag for flag, used in flags if used]
+        if misplaced and not given:
+            error("host", f"{', '.join(misplaced)} only apply with {needs}")
+            return EXIT_BAD_INPUT
     try:
-        publisher = FramePublisher(source=flight.eyepoint_at, channels=rig.channel_names, rate_hz=args.rate,
-                                   duration_s=duration, sync_timeout_s=args.sync_timeout,
-                                   observers=args.observers, start_timeout_s=args.start_timeout)
+        eyepoints, source, natural_s = _eyepoint_source(args)
     except ValueError as exc:
         error("host", exc)
         return EXIT_BAD_INPUT
-    stop = threading.Event()
-    stop_on_signals(stop)
+    duration = args.duration if args.duration is not None else (natural_s if math.isfinite(natural_s)
+                                                                  else UNTIL_STOPPED_S)
     try:
-        serve(publisher, bind_address(rig.host_address, args.bind), stop)
-    except OSError as exc:
-        error("host", exc)
-        return EXIT_FAILED
-    return EXIT_OK
+        try:
+            publisher = FramePublisher(source=source, channels=rig.channel_names, rate_hz=args.rate,
+                                       duration_s=duration, sync_timeout_s=args.sync_timeout,
+                                       observers=args.observers, start_timeout_s=args.start_timeout)
+        except ValueError as exc:
+            error("host", exc)
+            return EXIT_BAD_INPUT
+        stop = threading.Event()
+        stop_on_signals(stop)
+        try:
+            serve(publisher, bind_address(rig.host_address, args.bind), stop, eyepoints=eyepoints)
+        except OSError as exc:
+            error("host", exc)
+            return EXIT_FAILED
+        _log_summary(eyepoints)
+        return EXIT_OK
+    finally:
+        if hasattr(eyepoints, "close"):
+            eyepoints.close()
+
+
+def _eyepoint_source(args: argparse.Namespace):
+    """(what the eyepoints come from, eyepoint_at, its natural length in simulated seconds).
+
+    Raises:
+        ValueError: a control source or log that cannot be opened (the message names it).
+    """
+    if args.controls:
+        from host_sim.controlled import ControlledFlight
+        from host_sim.inputs import open_source
+
+        sources = []
+        try:
+            for url in args.controls:
+                sources.append(open_source(url, stale_after_s=args.stale_after))
+        except ValueError:
+            for s in sources:
+                s.close()
+            raise
+        flight = ControlledFlight(sources)
+        return flight, flight.eyepoint_at, math.inf
+    if args.replay is not None:
+        from host_sim.replay import Replay, load_track
+
+        track, fmt = load_track(args.replay, format=args.replay_format, origin=args.replay_origin)
+        replay = Replay(track, speed=args.speed, start_s=args.start, loop=args.loop, path=args.replay, format=fmt)
+        return replay, replay.eyepoint_at, replay.duration_s
+    from host_sim.flight import bundled_flight
+
+    flight = bundled_flight()
+    return None, flight.eyepoint_at, flight.duration_s
+
+
+def _log_summary(eyepoints) -> None:
+    from host_sim.controlled import ControlledFlight
+    from host_sim.replay import Replay
+
+    if isinstance(eyepoints, ControlledFlight):
+        inputs, model = eyepoints.status()
+        for s in inputs:
+            refused = {k: v for k, v in s.rejected.items() if v}
+            log.info("controls %s: %d accepted, refused %s%s", s.name, s.accepted, refused or "none",
+                     ", stale at the end" if s.stale else "")
+        log.info("flight model: %d steps", model.steps)
+    elif isinstance(eyepoints, Replay):
+        r = eyepoints.status()
+        log.info("replay %s: ended at log time %.2f s after %d loop(s)", r.path, r.log_time_s, r.loops)
+
+
+def _origin(text: str) -> tuple[float, float, float]:
+    """argparse type: LAT,LON,H in degrees and metres."""
+    try:
+        lat, lon, h = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not LAT,LON,H") from None
+    if not (abs(lat) <= 90 and abs(lon) <= 180 and math.isfinite(h)):
+        raise argparse.ArgumentTypeError(f"{text!r}: latitude must be within +-90, longitude +-180")
+    return lat, lon, h

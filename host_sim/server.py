@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import threading
+from typing import Any
 
 import grpc
 
@@ -20,9 +21,13 @@ _POLL_S = 0.5
 
 
 class HostServicer(host_pb2_grpc.HostServiceServicer):
-    def __init__(self, publisher: FramePublisher, stop: threading.Event) -> None:
+    """HostService over a publisher; eyepoints is what feeds it (for GetHostStatus): a
+    ControlledFlight, a Replay, or None for the bundled flight."""
+
+    def __init__(self, publisher: FramePublisher, stop: threading.Event, *, eyepoints: Any = None) -> None:
         self.publisher = publisher
         self.stop = stop
+        self.eyepoints = eyepoints
 
     def SubscribeFrames(self, request, context):
         try:
@@ -57,18 +62,44 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
             run_id=s.run_id, frames_published=s.frames_published, eyepoints_rejected=s.eyepoints_rejected,
             ack_timeouts=s.ack_timeouts, ack_failures=s.ack_failures, queue_drops=s.queue_drops,
             subscriptions_rejected=s.subscriptions_rejected, subscribers=s.subscribers,
-            finished=s.finished, last_error=s.last_error, channel_absent=s.channel_absent)
+            finished=s.finished, last_error=s.last_error, channel_absent=s.channel_absent,
+            **eyepoint_source_status(self.eyepoints))
+
+
+def eyepoint_source_status(eyepoints: Any) -> dict[str, Any]:
+    """GetHostStatusResponse fields describing the eyepoint source (controls, replay, bundled)."""
+    from .controlled import ControlledFlight
+    from .replay import Replay
+
+    if isinstance(eyepoints, ControlledFlight):
+        inputs, model = eyepoints.status()
+        return {"eyepoint_source": "controls",
+                "inputs": [host_pb2.InputSourceStatus(
+                    name=i.name, accepted=i.accepted, rejected=i.rejected, stale=i.stale,
+                    last_input_age_s=i.last_input_age_s, last_rejection=i.last_rejection,
+                    counters=i.counters, values=i.values) for i in inputs],
+                "flight_model": host_pb2.FlightModelStatus(steps=model.steps, speed_mps=model.speed_mps,
+                                                           on_ground=model.on_ground)}
+    if isinstance(eyepoints, Replay):
+        r = eyepoints.status()
+        return {"eyepoint_source": "replay",
+                "replay": host_pb2.ReplayStatus(
+                    path=r.path, format=r.format, records=r.records, problems=r.problems,
+                    attitude_estimated=r.attitude_estimated, log_duration_s=r.log_duration_s,
+                    log_time_s=r.log_time_s, loops=r.loops)}
+    return {"eyepoint_source": "bundled"}
 
 
 def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
-          linger_s: float = 2.0) -> int:
+          linger_s: float = 2.0, eyepoints: Any = None) -> int:
     """Serve the host on address and run the publisher until the run ends or stop is set.
 
     After the run it keeps answering for linger_s so that late acknowledgements and status
-    requests still succeed, then stops. Returns the bound port.
+    requests still succeed, then stops. eyepoints is what the publisher's source belongs to
+    (HostServicer). Returns the bound port.
     """
     server = make_server()
-    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(publisher, stop), server)
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(publisher, stop, eyepoints=eyepoints), server)
     health = add_health(server, [SERVICE])
     port = bind(server, address)
     server.start()

@@ -21,7 +21,8 @@ COMMANDS = {
     "render": ("channel_worker.cli_render", "render one frame of one channel to an image file",
                "Render one frame of one channel: .exr holds linear RGB and Z (range, metres), .png holds "
                "sRGB 8-bit."),
-    "host": ("host_sim.cli_host", "publish the bundled flight's eyepoints, frame-locked to the rig",
+    "host": ("host_sim.cli_host", "publish eyepoints frame-locked to the rig: the bundled flight, a flight model flown by "
+             "CAN/serial controls, or a replayed flight log",
              "Serve HostService: publish frames at a fixed rate, waiting for every channel to acknowledge "
              "each frame (docs/frame-lock.md). Serves gRPC health; SIGTERM stops it cleanly."),
     "worker": ("channel_worker.cli_worker", "render one channel of the rig",

@@ -72,3 +72,75 @@ def test_stream_ack_status_health_and_refusals(host):
         assert status.subscriptions_rejected == 1 and "'middle'" in status.last_error
         assert dict(status.ack_timeouts) == {"left": 0, "right": 0}
         assert dict(status.channel_absent) == {"left": 0, "right": 0}
+
+
+def serve_in_process(pub, eyepoints):
+    stop = threading.Event()
+    server = make_server()
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub, stop, eyepoints=eyepoints), server)
+    port = server.add_insecure_port("127.0.0.1:0")
+    server.start()
+    return server, stop, f"127.0.0.1:{port}"
+
+
+def test_status_shows_the_control_sources_and_their_refusals():
+    can = pytest.importorskip("can", reason="python-can is in the devices extra")
+    from host_sim.controlled import ControlledFlight
+    from host_sim.inputs import canaerospace as ca
+    from host_sim.inputs import open_source
+
+    flight = ControlledFlight([open_source("can://virtual/status-test?stale_after=0.2")])
+    tx = can.Bus(interface="virtual", channel="status-test")
+    try:
+        can_id, data = ca.encode("throttle_1_lever_position", 0.5)
+        tx.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+        can_id, data = ca.encode("pitch_control_position", 7.0)
+        tx.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+        pub = FramePublisher(source=flight.eyepoint_at, channels=["left"], rate_hz=100.0, duration_s=0.05,
+                             start_timeout_s=0.0)
+        server, stop, address = serve_in_process(pub, flight)
+        try:
+            pub.run(stop)
+            with make_channel(address) as ch:
+                status = host_pb2_grpc.HostServiceStub(ch).GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=10)
+        finally:
+            server.stop(0).wait()
+    finally:
+        tx.shutdown()
+        flight.close()
+    assert status.eyepoint_source == "controls"
+    [src] = status.inputs
+    assert src.name == "can://virtual/status-test?stale_after=0.2"
+    assert src.accepted == 1 and src.rejected["out_of_range"] == 1 and src.rejected["bad_crc"] == 0
+    assert "pitch_control_position (400): 7 is outside [-1, 1]" in src.last_rejection
+    assert dict(src.values) == {"throttle_1_lever_position": 0.5}
+    assert status.flight_model.steps == 6 and status.flight_model.on_ground
+
+
+def test_status_shows_the_replay(tmp_path):
+    from host_sim.replay import Replay, load_track
+
+    path = tmp_path / "f.csv"
+    path.write_text("time_s,x_m,y_m,z_m\n0,0,0,10\n1,0,40,10\n1,0,40,10\n2,0,80,12\n")
+    track, fmt = load_track(path)
+    replay = Replay(track, speed=2.0, path=str(path), format=fmt)
+    pub = FramePublisher(source=replay.eyepoint_at, channels=["left"], rate_hz=100.0, duration_s=replay.duration_s,
+                         start_timeout_s=0.0)
+    server, stop, address = serve_in_process(pub, replay)
+    try:
+        pub.run(stop)
+        with make_channel(address) as ch:
+            status = host_pb2_grpc.HostServiceStub(ch).GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=10)
+    finally:
+        server.stop(0).wait()
+    assert status.eyepoint_source == "replay" and status.frames_published == 101
+    r = status.replay
+    assert (r.format, r.records, r.log_duration_s, r.log_time_s, r.loops) == ("csv", 3, 2.0, 2.0, 0)
+    assert dict(r.problems)["duplicate"] == 1 and r.attitude_estimated
+
+
+def test_status_of_the_bundled_flight(host):
+    _, _, address = host
+    with make_channel(address) as ch:
+        status = host_pb2_grpc.HostServiceStub(ch).GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=10)
+    assert status.eyepoint_source == "bundled" and not status.inputs and not status.HasField("replay")

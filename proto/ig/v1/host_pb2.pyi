@@ -42,7 +42,7 @@ class GetHostStatusRequest(_message.Message):
     def __init__(self) -> None: ...
 
 class GetHostStatusResponse(_message.Message):
-    __slots__ = ("run_id", "frames_published", "eyepoints_rejected", "ack_timeouts", "ack_failures", "queue_drops", "subscriptions_rejected", "subscribers", "finished", "last_error", "channel_absent")
+    __slots__ = ("run_id", "frames_published", "eyepoints_rejected", "ack_timeouts", "ack_failures", "queue_drops", "subscriptions_rejected", "subscribers", "finished", "last_error", "channel_absent", "eyepoint_source", "inputs", "replay", "flight_model")
     class AckTimeoutsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -82,6 +82,10 @@ class GetHostStatusResponse(_message.Message):
     FINISHED_FIELD_NUMBER: _ClassVar[int]
     LAST_ERROR_FIELD_NUMBER: _ClassVar[int]
     CHANNEL_ABSENT_FIELD_NUMBER: _ClassVar[int]
+    EYEPOINT_SOURCE_FIELD_NUMBER: _ClassVar[int]
+    INPUTS_FIELD_NUMBER: _ClassVar[int]
+    REPLAY_FIELD_NUMBER: _ClassVar[int]
+    FLIGHT_MODEL_FIELD_NUMBER: _ClassVar[int]
     run_id: str
     frames_published: int
     eyepoints_rejected: int
@@ -93,4 +97,86 @@ class GetHostStatusResponse(_message.Message):
     finished: bool
     last_error: str
     channel_absent: _containers.ScalarMap[str, int]
-    def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ..., channel_absent: _Optional[_Mapping[str, int]] = ...) -> None: ...
+    eyepoint_source: str
+    inputs: _containers.RepeatedCompositeFieldContainer[InputSourceStatus]
+    replay: ReplayStatus
+    flight_model: FlightModelStatus
+    def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ..., channel_absent: _Optional[_Mapping[str, int]] = ..., eyepoint_source: _Optional[str] = ..., inputs: _Optional[_Iterable[_Union[InputSourceStatus, _Mapping]]] = ..., replay: _Optional[_Union[ReplayStatus, _Mapping]] = ..., flight_model: _Optional[_Union[FlightModelStatus, _Mapping]] = ...) -> None: ...
+
+class InputSourceStatus(_message.Message):
+    __slots__ = ("name", "accepted", "rejected", "stale", "last_input_age_s", "last_rejection", "counters", "values")
+    class RejectedEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class CountersEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class ValuesEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: float
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[float] = ...) -> None: ...
+    NAME_FIELD_NUMBER: _ClassVar[int]
+    ACCEPTED_FIELD_NUMBER: _ClassVar[int]
+    REJECTED_FIELD_NUMBER: _ClassVar[int]
+    STALE_FIELD_NUMBER: _ClassVar[int]
+    LAST_INPUT_AGE_S_FIELD_NUMBER: _ClassVar[int]
+    LAST_REJECTION_FIELD_NUMBER: _ClassVar[int]
+    COUNTERS_FIELD_NUMBER: _ClassVar[int]
+    VALUES_FIELD_NUMBER: _ClassVar[int]
+    name: str
+    accepted: int
+    rejected: _containers.ScalarMap[str, int]
+    stale: bool
+    last_input_age_s: float
+    last_rejection: str
+    counters: _containers.ScalarMap[str, int]
+    values: _containers.ScalarMap[str, float]
+    def __init__(self, name: _Optional[str] = ..., accepted: _Optional[int] = ..., rejected: _Optional[_Mapping[str, int]] = ..., stale: _Optional[bool] = ..., last_input_age_s: _Optional[float] = ..., last_rejection: _Optional[str] = ..., counters: _Optional[_Mapping[str, int]] = ..., values: _Optional[_Mapping[str, float]] = ...) -> None: ...
+
+class ReplayStatus(_message.Message):
+    __slots__ = ("path", "format", "records", "problems", "attitude_estimated", "log_duration_s", "log_time_s", "loops")
+    class ProblemsEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    PATH_FIELD_NUMBER: _ClassVar[int]
+    FORMAT_FIELD_NUMBER: _ClassVar[int]
+    RECORDS_FIELD_NUMBER: _ClassVar[int]
+    PROBLEMS_FIELD_NUMBER: _ClassVar[int]
+    ATTITUDE_ESTIMATED_FIELD_NUMBER: _ClassVar[int]
+    LOG_DURATION_S_FIELD_NUMBER: _ClassVar[int]
+    LOG_TIME_S_FIELD_NUMBER: _ClassVar[int]
+    LOOPS_FIELD_NUMBER: _ClassVar[int]
+    path: str
+    format: str
+    records: int
+    problems: _containers.ScalarMap[str, int]
+    attitude_estimated: bool
+    log_duration_s: float
+    log_time_s: float
+    loops: int
+    def __init__(self, path: _Optional[str] = ..., format: _Optional[str] = ..., records: _Optional[int] = ..., problems: _Optional[_Mapping[str, int]] = ..., attitude_estimated: _Optional[bool] = ..., log_duration_s: _Optional[float] = ..., log_time_s: _Optional[float] = ..., loops: _Optional[int] = ...) -> None: ...
+
+class FlightModelStatus(_message.Message):
+    __slots__ = ("steps", "speed_mps", "on_ground")
+    STEPS_FIELD_NUMBER: _ClassVar[int]
+    SPEED_MPS_FIELD_NUMBER: _ClassVar[int]
+    ON_GROUND_FIELD_NUMBER: _ClassVar[int]
+    steps: int
+    speed_mps: float
+    on_ground: bool
+    def __init__(self, steps: _Optional[int] = ..., speed_mps: _Optional[float] = ..., on_ground: _Optional[bool] = ...) -> None: ...

@@ -1,0 +1,47 @@
+"""WGS-84 -> ECEF -> ENU in float64."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from host_sim.replay import geodetic
+
+
+def test_ecef_of_known_points():
+    np.testing.assert_allclose(geodetic.ecef(np.array(0.0), np.array(0.0), np.array(0.0)), [6378137.0, 0.0, 0.0])
+    np.testing.assert_allclose(geodetic.ecef(np.array(90.0), np.array(0.0), np.array(0.0)),
+                               [0.0, 0.0, 6356752.314245], atol=1e-6)  # the polar radius
+    np.testing.assert_allclose(geodetic.ecef(np.array(0.0), np.array(90.0), np.array(100.0)),
+                               [0.0, 6378237.0, 0.0], atol=1e-6)
+
+
+def test_enu_axes_point_east_north_up():
+    origin = (47.0, 8.0, 500.0)
+    east = geodetic.enu(np.array([47.0]), np.array([8.001]), np.array([500.0]), origin)[0]
+    north = geodetic.enu(np.array([47.001]), np.array([8.0]), np.array([500.0]), origin)[0]
+    up = geodetic.enu(np.array([47.0]), np.array([8.0]), np.array([600.0]), origin)[0]
+    assert east[0] == pytest.approx(76.0, rel=0.01) and abs(east[1]) < 0.01  # 0.001 deg * 111 km * cos 47
+    assert north[1] == pytest.approx(111.2, rel=0.01) and abs(north[0]) < 1e-6
+    np.testing.assert_allclose(up, [0.0, 0.0, 100.0], atol=1e-6)
+    np.testing.assert_array_equal(geodetic.enu(np.array([47.0]), np.array([8.0]), np.array([500.0]), origin), 0.0)
+
+
+def test_distances_are_preserved_and_the_earth_curves_away():
+    origin = (-33.9, 151.2, 0.0)
+    # 10 km due north along the ellipsoid: the chord is the distance, and the far point drops
+    # below the local horizontal by about d^2 / (2 R).
+    lat = -33.9 + 10_000.0 / 110_900.0
+    p = geodetic.enu(np.array([lat]), np.array([151.2]), np.array([0.0]), origin)[0]
+    assert math.hypot(p[1], p[2]) == pytest.approx(10_000.0, rel=2e-3)
+    assert p[2] == pytest.approx(-10_000.0 ** 2 / (2 * 6_371_000.0), rel=0.02)
+
+
+def test_float64_keeps_millimetres_far_from_the_origin():
+    origin = (45.0, 7.0, 0.0)
+    a = geodetic.enu(np.array([45.5]), np.array([7.5]), np.array([1000.0]), origin)[0]
+    b = geodetic.enu(np.array([45.5]), np.array([7.5]), np.array([1000.001]), origin)[0]
+    assert np.linalg.norm(b - a) == pytest.approx(0.001, abs=1e-6)
+    assert a.dtype == np.float64

@@ -1,0 +1,47 @@
+"""`ig host` option errors exit 2 with a named error before anything is served."""
+
+from __future__ import annotations
+
+import pytest
+
+from services.cli import main
+
+
+@pytest.fixture
+def csv_log(tmp_path):
+    path = tmp_path / "f.csv"
+    path.write_text("time_s,x_m,y_m,z_m\n0,0,0,10\n1,0,40,10\n2,0,80,12\n")
+    return path
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["--speed", "2"], "--speed only apply with --replay"),
+    (["--loop", "--start", "1"], "--start, --loop only apply with --replay"),
+    (["--stale-after", "1"], "--stale-after only apply with --controls"),
+    (["--controls", "bogus://x"], "bogus://x: unknown control source scheme"),
+    (["--controls", "can://virtual/cli-test?bitrat=1"], "option 'bitrat' is not a CAN bus option"),
+    (["--replay", "/nonexistent/flight.igc"], "no such file"),
+])
+def test_bad_sources_exit_2(argv, words, capsys):
+    assert main(["host", *argv]) == 2
+    err = capsys.readouterr().err
+    assert "ig host: error: " in err and words in err
+
+
+def test_errors_name_the_problem(csv_log, capsys):
+    assert main(["host", "--replay", str(csv_log), "--start", "5"]) == 2
+    assert "start: 5.0 s is outside the log (0 .. 2.000 s)" in capsys.readouterr().err
+    bad = csv_log.with_name("bad.csv")
+    bad.write_text("time_s,x_m,y_m,z_m\n0,0,0,10\nx,y,z,w\n")
+    assert main(["host", "--replay", str(bad)]) == 2
+    assert "bad.csv: 1 usable record(s), need at least 2 (corrupt 1)" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["--controls", "can://virtual/x", "--replay", "f.csv"],
+                                  ["--replay", "f.csv", "--replay-origin", "100,0,0"],
+                                  ["--replay", "f.csv", "--replay-format", "kml"],
+                                  ["--replay", "f.csv", "--speed", "0"]])
+def test_bad_options_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["host", *argv])
+    assert exc.value.code == 2
