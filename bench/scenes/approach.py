@@ -58,6 +58,7 @@ from channel_worker.data.build_airfield import (  # noqa: E402
     gable_building,
     hill,
     make_part,
+    model_doc,
 )
 from channel_worker.pipeline.types import ChannelSpec, Eyepoint  # noqa: E402
 
@@ -484,28 +485,11 @@ def approach_scene() -> dict[str, Any]:
         "earth": {"colour": GRASS, "height_m": 0.0},
         # Sun in the south-south-west, behind the approaching aircraft.
         "lighting": {"sun_heading_deg": 200.0, "sun_elevation_deg": 35.0, "ambient": 0.4},
-        "models": {name: _model_doc(parts) for name, parts in s.models.items()},
+        "models": {name: model_doc(parts) for name, parts in s.models.items()},
         "instances": s.instances,
     }
 
 
-def _model_doc(parts: Sequence[Part]) -> dict[str, Any]:
-    """One model's JSON: the parts' vertices concatenated, face indices rebased. A face's "on"
-    is an index among the model's faces, as the parts list them in order."""
-    vertices: list[list[float]] = []
-    faces: list[dict[str, Any]] = []
-    for part in parts:
-        base = len(vertices)
-        vertices += [list(v) for v in part.vertices]
-        for f in part.faces:
-            face: dict[str, Any] = {"indices": [base + i for i in f.indices], "colour": f.colour}
-            if f.opacity != 1.0:
-                face["opacity"] = f.opacity
-            if f.on is not None:
-                face["on"] = f.on
-                face["layer"] = f.layer
-            faces.append(face)
-    return {"vertices": vertices, "faces": faces}
 
 
 def scene_counts(doc: dict[str, Any]) -> dict[str, int]:

@@ -668,12 +668,14 @@ def build_scene() -> dict[str, Any]:
         # Sun in the south-south-west behind the departing aircraft: the faces the flight looks
         # at are lit, and east/west walls differ in shade.
         "lighting": {"sun_heading_deg": 210.0, "sun_elevation_deg": 38.0, "ambient": 0.4},
-        "models": {name: _model_doc(parts) for name, parts in models.items()},
+        "models": {name: model_doc(parts) for name, parts in models.items()},
         "instances": [_instance_doc(i) for i in instances],
     }
 
 
-def _model_doc(parts: Sequence[Part]) -> dict[str, Any]:
+def model_doc(parts: Sequence[Part]) -> dict[str, Any]:
+    """One model's JSON: the parts' vertices concatenated, face indices rebased; a face's "on"
+    is an index among the model's faces in the order the parts list them."""
     vertices: list[list[float]] = []
     faces: list[dict[str, Any]] = []
     for part in parts:
