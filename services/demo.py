@@ -179,10 +179,6 @@ def format_report(doc: dict) -> str:
     return "\n".join(lines)
 
 
-class _Terminated(Exception):
-    """SIGTERM reached the demo: stop everything as for Ctrl-C."""
-
-
 def run(args: argparse.Namespace) -> int:
     """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
     from channel_worker.pipeline.resolve import check_filter
@@ -222,11 +218,16 @@ def run(args: argparse.Namespace) -> int:
           f"{args.rate:g} Hz; logs in {out / 'logs'}", flush=True)
     scene = ["--scene", args.scene] if args.scene else []
 
-    def on_sigterm(signum, frame):
-        raise _Terminated()
+    # Ctrl-C and SIGTERM only raise a flag that the watch loop reads every second: an exception
+    # raised from a handler can land inside a gRPC call of the progress poll and be lost there.
+    stop: dict[str, str | None] = {"why": None}
 
-    previous = signal.signal(signal.SIGTERM, on_sigterm)
+    def on_signal(signum, frame):
+        stop["why"] = "interrupted" if signum == signal.SIGINT else "terminated"
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     started = time.monotonic()
+    failure = None
     try:
         compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
                                                 "--exr-every", str(args.exr_every), "--once"])
@@ -237,18 +238,15 @@ def run(args: argparse.Namespace) -> int:
                         env={"NUMBA_NUM_THREADS": "1"})
         procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(args.rate),
                              "--duration", str(args.duration)])
-        failure = _watch(procs, compositor, rig.compositor_address, expected)
-    except KeyboardInterrupt:
-        print("\nig demo: interrupted; stopping every process", file=sys.stderr)
-        procs.stop_all()
-        return EXIT_INTERRUPTED
-    except _Terminated:
-        print("\nig demo: terminated; stopping every process", file=sys.stderr)
-        procs.stop_all()
-        return EXIT_FAILED
+        failure = _watch(procs, compositor, rig.compositor_address, expected, stop)
+        if stop["why"]:
+            print(f"\nig demo: {stop['why']}; stopping every process", file=sys.stderr)
+            procs.stop_all()
+            return EXIT_INTERRUPTED if stop["why"] == "interrupted" else EXIT_FAILED
     finally:
         procs.stop_all()
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     if failure:
         name, code = failure
         print(f"ig demo: {name} exited with code {code}; every process was stopped", file=sys.stderr)
@@ -268,17 +266,21 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK if ok else EXIT_FAILED
 
 
-def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expected: int) -> tuple[str, int] | None:
+def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expected: int,
+           stop: dict[str, str | None]) -> tuple[str, int] | None:
     """Show progress until the compositor exits; (name, exit code) of the first process that failed.
 
     One failed process ends the demo at once: without it the host would wait out its start
-    and sync timeouts for a channel that will never answer.
+    and sync timeouts for a channel that will never answer. A raised stop["why"] (a signal)
+    ends the watch within a second.
     """
     # On a terminal the progress line is redrawn every second; in a log, a line every 10 s.
     tty = sys.stdout.isatty()
     last, next_line = "", 0.0
-    while compositor.poll() is None:
+    while compositor.poll() is None and not stop["why"]:
         time.sleep(1.0)
+        if stop["why"]:
+            break
         failed = procs.failed()
         if failed:
             if tty:
