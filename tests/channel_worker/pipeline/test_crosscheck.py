@@ -27,19 +27,24 @@ def seen_features(database, eyepoint: Eyepoint, renderer: str, channel: ChannelS
     trace: dict = {}
     render_frame(database, channel, eyepoint, samples="centre", renderer=renderer, trace=trace)
     opaque = trace["buffer"].opaque[..., 0]
+    if trace["screen"].count == 0:
+        return opaque
     ids = trace["screen"].feature_id[np.maximum(opaque, 0)]
     return np.where(opaque >= 0, ids, opaque)
 
 
 def box_scene(origin: np.ndarray, heading: float, pitch: float, boxes: list) -> tuple:
-    """Boxes in slabs 40 m deep along the view direction (slab k: 40 k + 20 .. 40 k + 50 m)."""
+    """Boxes in slabs along the view direction, 40 m apart (box k centred 35 + 40 k m ahead,
+    at most 10 m deep), offset across and up by the given fractions of that distance (within
+    the field of view, so every box is at least partly seen)."""
     h, p = np.radians(heading), np.radians(pitch)
     fwd = np.array([np.sin(h) * np.cos(p), np.cos(h) * np.cos(p), np.sin(p)])
     right = np.array([np.cos(h), -np.sin(h), 0.0])
     up = np.cross(right, fwd)
     models, instances = {}, []
     for k, (lateral, vertical, size, spin) in enumerate(boxes):
-        centre = origin + fwd * (35.0 + 40.0 * k) + right * lateral + up * vertical
+        distance = 35.0 + 40.0 * k
+        centre = origin + fwd * distance + (right * lateral + up * vertical) * distance
         name = f"b{k}"
         models[name] = box_model(size, size, size, f"#{(40 * k + 30) % 256:02x}8040")
         instances.append({"model": name, "position": list(centre - np.array([0, 0, size / 2])),
@@ -54,7 +59,7 @@ def box_scene(origin: np.ndarray, heading: float, pitch: float, boxes: list) -> 
     heading=st.floats(0.0, 360.0),
     pitch=st.floats(-60.0, 60.0),
     roll=st.sampled_from([0.0, 33.0, 90.0, 180.0, -120.0]),
-    boxes=st.lists(st.tuples(st.floats(-25.0, 25.0), st.floats(-20.0, 20.0), st.floats(4.0, 14.0),
+    boxes=st.lists(st.tuples(st.floats(-0.5, 0.5), st.floats(-0.3, 0.3), st.floats(4.0, 7.0),
                              st.floats(0.0, 90.0)), min_size=1, max_size=5),
 )
 def test_renderers_agree_at_pixel_centres_on_separated_boxes(far, heading, pitch, roll, boxes):
@@ -92,7 +97,7 @@ def test_renderers_agree_on_markings_declared_on_their_base(distance):
 
 
 def test_scanline_renderer_takes_only_the_pixel_centre():
-    database = box_scene(np.zeros(3), 0.0, 0.0, [(0.0, 0.0, 5.0, 0.0)])
+    database = box_scene(np.zeros(3), 0.0, 0.0, [(0.0, 0.0, 5.0, 0.0)])  # one box 35 m ahead
     with pytest.raises(ValueError, match="samples: the scanline renderer samples pixel centres only"):
         render_frame(database, CH, Eyepoint.of(0, 0, 0, 0, 0, 0), samples=4, renderer="scanline")
     with pytest.raises(ValueError, match="renderer: unknown renderer 'zbuffer'"):
