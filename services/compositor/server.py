@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Sequence
 
 import grpc
+from google.protobuf import json_format
 
 from ig.v1 import compositor_pb2, compositor_pb2_grpc, host_pb2, host_pb2_grpc
 from services.grpc_util import (RPC_DEADLINE_S, STREAM_DEADLINE_S, add_health, bind, make_channel, make_server,
@@ -132,7 +133,15 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
                 "eyepoints_rejected": s.eyepoints_rejected, "ack_timeouts": dict(s.ack_timeouts),
                 "ack_failures": dict(s.ack_failures), "channel_absent": dict(s.channel_absent),
                 "subscriptions_rejected": s.subscriptions_rejected, "queue_drops": dict(s.queue_drops),
-                "last_error": s.last_error}
+                "last_error": s.last_error,
+                # Where the eyepoints came from and what the control inputs or the replayed log
+                # refused, by cause (docs/host-inputs.md, docs/replay-formats.md).
+                "eyepoint_source": s.eyepoint_source,
+                "inputs": [json_format.MessageToDict(i, preserving_proto_field_name=True) for i in s.inputs],
+                "replay": json_format.MessageToDict(s.replay, preserving_proto_field_name=True)
+                if s.HasField("replay") else None,
+                "flight_model": json_format.MessageToDict(s.flight_model, preserving_proto_field_name=True)
+                if s.HasField("flight_model") else None}
         except grpc.RpcError as exc:
             log.warning("host status unavailable: %s", exc.code().name)
         return True

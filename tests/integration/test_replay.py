@@ -113,6 +113,10 @@ def test_the_replay_runs_to_its_end_and_every_process_exits_cleanly(replay_run):
     assert report["frames_complete"] == frames
     assert report["frames_incomplete"] == {"missing_channel": 0, "eyepoint_mismatch": 0}
     assert "glider.igc (igc): 8 records over 7.0 s, attitude estimated from the track" in replay_run["logs"]["host"]
+    # The compositor's report carries the host's account of the replay.
+    assert report["host"]["eyepoint_source"] == "replay"
+    assert report["host"]["replay"]["format"] == "igc" and report["host"]["replay"]["records"] == "8"
+    assert report["host"]["replay"]["attitude_estimated"] is True
 
 
 def test_every_stitched_frame_has_the_replayed_eyepoint(replay_run):

@@ -161,6 +161,7 @@ def test_every_frame_is_complete_and_stitched_from_the_same_frame(rig_run):
     assert report["late_images"] == 0
     assert report["frames_skipped"] == {"left": 0, "centre": 0, "right": 0}
     assert report["host"]["ack_timeouts"] == {"left": 0, "centre": 0, "right": 0}
+    assert report["host"]["eyepoint_source"] == "bundled" and report["host"]["inputs"] == []
     pngs = sorted((rig_run["out"] / "frames").glob("frame_*.png"))
     assert len(pngs) == EXPECTED
     for png in pngs:
