@@ -11,10 +11,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -24,30 +20,14 @@ from services.demo import local_rig, rig_toml
 from services.image_io import read_image
 from services.rig import default_rig_path, load_rig
 
+from .conftest import start, wait_all
+
 pytestmark = pytest.mark.integration
 
-ROOT = Path(__file__).resolve().parent.parent.parent
 
 W, H = 64, 48
 RATE, SPEED, START = 10.0, 2.0, 1.0
 ORIGIN = (46.5, 7.0, 600.0)  # the geodetic point placed at the world origin
-
-
-def start(argv, log):
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
-    return subprocess.Popen([sys.executable, "-m", "services.cli", *argv], stdout=log, stderr=subprocess.STDOUT,
-                            env=env, cwd=ROOT)
-
-
-def wait_all(procs, timeout_s=300.0):
-    """Exit codes once every process has ended; a process that fails ends the run at once."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        codes = {name: p.poll() for name, p in procs.items()}
-        if all(c is not None for c in codes.values()) or any(c not in (None, 0) for c in codes.values()):
-            return codes
-        time.sleep(0.2)
-    return {name: p.poll() for name, p in procs.items()}
 
 
 def write_igc(path: Path) -> Path:

@@ -9,36 +9,36 @@ malformed scene. The run must still finish with every frame complete.
 from __future__ import annotations
 
 import json
-import os
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import grpc
 import numpy as np
 import pytest
+from ig.v1 import (
+    compositor_pb2,
+    compositor_pb2_grpc,
+    frame_pb2,
+    host_pb2,
+    host_pb2_grpc,
+    worker_pb2,
+    worker_pb2_grpc,
+)
 
-from ig.v1 import (compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc, worker_pb2,
-                   worker_pb2_grpc)
 from services.demo import local_rig, rig_toml
 from services.grpc_util import check_health, make_channel
 from services.image_io import read_image
 from services.rig import default_rig_path, load_rig
+
+from .conftest import ROOT, start, wait_all
 
 pytestmark = pytest.mark.integration
 
 W, H = 160, 120
 RATE, DURATION = 20.0, 1.5
 EXPECTED = int(round(RATE * DURATION)) + 1
-ROOT = Path(__file__).resolve().parent.parent.parent
-
-
-def start(argv, log):
-    env = {**os.environ, "NUMBA_NUM_THREADS": "1"}
-    return subprocess.Popen([sys.executable, "-m", "services.cli", *argv], stdout=log, stderr=subprocess.STDOUT,
-                            env=env, cwd=ROOT)
 
 
 def wait_serving(address, proc, timeout_s=180.0):
@@ -52,17 +52,6 @@ def wait_serving(address, proc, timeout_s=180.0):
         except grpc.RpcError:
             time.sleep(0.1)
     return "UNREACHABLE"
-
-
-def wait_all(procs, timeout_s=300.0):
-    """Exit codes once every process has ended; a process that fails ends the run at once."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        codes = {name: p.poll() for name, p in procs.items()}
-        if all(c is not None for c in codes.values()) or any(c not in (None, 0) for c in codes.values()):
-            return codes
-        time.sleep(0.2)
-    return {name: p.poll() for name, p in procs.items()}
 
 
 @pytest.fixture(scope="module")
