@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from channel_worker.pipeline.render import render_frame
@@ -35,14 +35,15 @@ def seen_features(database, eyepoint: Eyepoint, renderer: str, channel: ChannelS
 
 def box_scene(origin: np.ndarray, heading: float, pitch: float, boxes: list) -> tuple:
     """Boxes in slabs along the view direction, 40 m apart (box k centred 35 + 40 k m ahead,
-    at most 10 m deep), offset across and up by the given fractions of that distance (within
-    the field of view, so every box is at least partly seen)."""
+    at most 10 m deep), offset from the view axis by (radius as a fraction of that distance,
+    angle in degrees): radius <= 0.35 keeps the centre inside the field of view at any roll."""
     h, p = np.radians(heading), np.radians(pitch)
     fwd = np.array([np.sin(h) * np.cos(p), np.cos(h) * np.cos(p), np.sin(p)])
     right = np.array([np.cos(h), -np.sin(h), 0.0])
     up = np.cross(right, fwd)
     models, instances = {}, []
-    for k, (lateral, vertical, size, spin) in enumerate(boxes):
+    for k, (radius, angle, size, spin) in enumerate(boxes):
+        lateral, vertical = radius * np.cos(np.radians(angle)), radius * np.sin(np.radians(angle))
         distance = 35.0 + 40.0 * k
         centre = origin + fwd * distance + (right * lateral + up * vertical) * distance
         name = f"b{k}"
@@ -59,9 +60,12 @@ def box_scene(origin: np.ndarray, heading: float, pitch: float, boxes: list) -> 
     heading=st.floats(0.0, 360.0),
     pitch=st.floats(-60.0, 60.0),
     roll=st.sampled_from([0.0, 33.0, 90.0, 180.0, -120.0]),
-    boxes=st.lists(st.tuples(st.floats(-0.5, 0.5), st.floats(-0.3, 0.3), st.floats(4.0, 7.0),
+    boxes=st.lists(st.tuples(st.floats(0.0, 0.35), st.floats(0.0, 360.0), st.floats(4.0, 7.0),
                              st.floats(0.0, 90.0)), min_size=1, max_size=5),
 )
+@example(far=0.0, heading=0.0, pitch=0.0, roll=-120.0, boxes=[(0.35, 210.0, 4.0, 0.0)])
+@example(far=1.0e6, heading=359.0, pitch=60.0, roll=180.0,
+         boxes=[(0.35, 90.0, 7.0, 45.0), (0.0, 0.0, 4.0, 0.0), (0.35, 270.0, 5.0, 10.0)])
 def test_renderers_agree_at_pixel_centres_on_separated_boxes(far, heading, pitch, roll, boxes):
     origin = np.array([far, -far / 2.0, 1000.0])
     database = box_scene(origin, heading, pitch, boxes)
