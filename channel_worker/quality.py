@@ -10,7 +10,7 @@ from .pipeline.binning import DEFAULT_SUBAREA
 from .pipeline.render import RENDERERS
 from .pipeline.resolve import FILTERS
 from .pipeline.samples import pattern_names
-from .pipeline.visibility import DEFAULT_MAX_TRANSLUCENT
+from .pipeline.types import DEFAULT_MAX_TRANSLUCENT
 
 
 def add_quality_arguments(parser: argparse.ArgumentParser, *, renderer: bool = False) -> None:
@@ -43,7 +43,7 @@ def check_options(options: dict[str, Any]) -> None:
     from .pipeline.binning import check_subarea
     from .pipeline.resolve import check_filter
     from .pipeline.samples import sample_pattern
-    from .pipeline.visibility import check_max_translucent
+    from .pipeline.types import check_max_translucent
 
     sample_pattern(options.get("samples", 4))
     check_filter(options.get("filter", "box"))

@@ -98,20 +98,16 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
           o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
           fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step):
     """One sub-area of visibility_kernel, with the chunk's sample store as scratch."""
-    ty = t // tiles_x
-    tx = t - ty * tiles_x
-    tx0 = tx * size
-    ty0 = ty * size
-    tx1 = min(tx0 + size, width)
-    ty1 = min(ty0 + size, height)
+    tx0, ty0, tx1, ty1 = _subarea_rect(t, tiles_x, size, width, height)
     tw = tx1 - tx0
+    background = _background(tx0, ty0, size, horizon)
     n = tw * (ty1 - ty0) * s_count
     if fused and tile_start[t] == tile_start[t + 1]:
         # Nothing in the sub-area: the background alone, one colour unless the horizon
         # crosses it (and, with ranges, only if it is sky: the earth's range varies).
         # Checked before the store is even cleared.
-        if _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, want_range,
-                            out_rgb, out_range):
+        if _fill_background(tx0, ty0, tx1, ty1, background, sky, earth, want_range, out_rgb,
+                            out_range):
             return
     # Only the identities need clearing: 1/z and layer are read only where an identity is set.
     for i in range(n):
@@ -229,17 +225,6 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
 
     kx, ky, k0 = horizon[0], horizon[1], horizon[2]
     sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
-    # The horizon value is affine, so its sign over the sub-area is known from the corners
-    # unless the horizon line crosses it.
-    h00 = kx * tx0 + ky * ty0 + k0
-    h10 = kx * (tx0 + size) + ky * ty0 + k0
-    h01 = kx * tx0 + ky * (ty0 + size) + k0
-    h11 = kx * (tx0 + size) + ky * (ty0 + size) + k0
-    background = 0
-    if h00 < 0.0 and h10 < 0.0 and h01 < 0.0 and h11 < 0.0:
-        background = EARTH_ID
-    elif h00 >= 0.0 and h10 >= 0.0 and h01 >= 0.0 and h11 >= 0.0:
-        background = SKY_ID
     if fused:
         # A sub-area whose every sample sees one thing and nothing translucent (open sky,
         # open ground, the inside of a large face) is one colour: fill it without shading.
@@ -370,19 +355,39 @@ def _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, t
     return added if changed else -1
 
 
-@njit(cache=True)
-def _fill_background(tx0, ty0, tx1, ty1, size, horizon, sky, earth, want_range, out_rgb,
-                     out_range):
-    """Fill the sub-area with sky or earth if the horizon line misses it (with ranges: only
-    with sky, range +inf); False if it was not filled."""
+@njit(cache=True, inline="always")
+def _subarea_rect(t, tiles_x, size, width, height):
+    """(x0, y0, x1, y1) pixels of sub-area t (row-major), clipped to the raster; x1, y1 exclusive."""
+    ty = t // tiles_x
+    x0 = (t - ty * tiles_x) * size
+    y0 = ty * size
+    return x0, y0, min(x0 + size, width), min(y0 + size, height)
+
+
+@njit(cache=True, inline="always")
+def _background(tx0, ty0, size, horizon):
+    """EARTH_ID or SKY_ID if every point of the sub-area sees that behind the features, 0 if the
+    horizon crosses it: the horizon value is affine, so its sign over the sub-area is that of
+    its corners when they all agree."""
     kx, ky, k0 = horizon[0], horizon[1], horizon[2]
     h00 = kx * tx0 + ky * ty0 + k0
     h10 = kx * (tx0 + size) + ky * ty0 + k0
     h01 = kx * tx0 + ky * (ty0 + size) + k0
     h11 = kx * (tx0 + size) + ky * (ty0 + size) + k0
-    if h00 < 0.0 and h10 < 0.0 and h01 < 0.0 and h11 < 0.0 and not want_range:
+    if h00 < 0.0 and h10 < 0.0 and h01 < 0.0 and h11 < 0.0:
+        return EARTH_ID
+    if h00 >= 0.0 and h10 >= 0.0 and h01 >= 0.0 and h11 >= 0.0:
+        return SKY_ID
+    return 0
+
+
+@njit(cache=True)
+def _fill_background(tx0, ty0, tx1, ty1, background, sky, earth, want_range, out_rgb, out_range):
+    """Fill the sub-area with its background if it has a single one (with ranges: only the
+    sky, at +inf; the earth's range varies); False if it was not filled."""
+    if background == EARTH_ID and not want_range:
         cr, cg, cb = earth[0], earth[1], earth[2]
-    elif h00 >= 0.0 and h10 >= 0.0 and h01 >= 0.0 and h11 >= 0.0:
+    elif background == SKY_ID:
         cr, cg, cb = sky[0], sky[1], sky[2]
     else:
         return False
@@ -502,12 +507,7 @@ def coverage_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, width,
     n_tiles = tile_start.shape[0] - 1
     s_count = off_fixed.shape[0]
     for t in prange(n_tiles):
-        ty = t // tiles_x
-        tx = t - ty * tiles_x
-        tx0 = tx * size
-        ty0 = ty * size
-        tx1 = min(tx0 + size, width)
-        ty1 = min(ty0 + size, height)
+        tx0, ty0, tx1, ty1 = _subarea_rect(t, tiles_x, size, width, height)
         for k in range(tile_start[t], tile_start[t + 1]):
             p = entry_polygon[k]
             full = entry_full[k]

@@ -17,7 +17,6 @@ def eliminate_backfaces(polys: Polygons) -> Polygons:
     also the guard that keeps the plane constant d = n . p0 away from zero for the depth
     interpolation in project.py.
     """
-    n = polys.plane[:, :3]
     d = polys.plane[:, 3]
     first = polys.verts[polys.start[:-1]]
     dist = np.sqrt(np.einsum("ij,ij->i", first, first))

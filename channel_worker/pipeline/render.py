@@ -19,10 +19,16 @@ from .project import project
 from .resolve import check_filter, resolve
 from .samples import sample_pattern
 from .scanline import scanline_visibility
-from .types import ChannelSpec, Database, Eyepoint, Image, StageTimes
-from .visibility import (
+from .types import (
     DEFAULT_MAX_TRANSLUCENT,
+    ChannelSpec,
+    Database,
+    Eyepoint,
+    Image,
+    StageTimes,
     check_max_translucent,
+)
+from .visibility import (
     resolve_visibility,
     visible_pixels,
 )

@@ -53,7 +53,7 @@ from ._scanline_kernels import (
 )
 from .horizon import earth_dz_screen
 from .project import screen_mapping
-from .types import SUBPIXEL, Database, SampleBuffer, ScreenPolygons, View
+from .types import SUBPIXEL, Database, SampleBuffer, ScreenPolygons, View, check_max_translucent
 
 #: The one sample per pixel: its centre.
 CENTRE_OFFSETS = np.array([[0.5, 0.5]], np.float64)
@@ -87,7 +87,7 @@ def scanline_visibility(screen: ScreenPolygons, view: View, database: Database, 
     Raises:
         ValueError: max_translucent outside 1..15 (named with its value).
     """
-    k = _check_max_translucent(max_translucent)
+    k = check_max_translucent(max_translucent)
     h, w = view.height, view.width
     edges, nonconvex = _edge_list(screen, h)
     rank = _priority_list(screen)
@@ -120,13 +120,6 @@ def scanline_visibility(screen: ScreenPolygons, view: View, database: Database, 
     }
     return SampleBuffer(offsets=CENTRE_OFFSETS.copy(), opaque=opaque, translucent=trans,
                         translucent_count=count, polygon_range=polygon_range, stats=stats)
-
-
-def _check_max_translucent(k: int) -> int:
-    """K as an int, or ValueError naming the argument and value (counts are stored as uint8)."""
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= 15:
-        raise ValueError(f"max_translucent: expected an integer in 1..15, got {k!r}")
-    return int(k)
 
 
 def _edge_list(screen: ScreenPolygons, height: int) -> tuple[dict[str, np.ndarray], int]:

@@ -383,3 +383,14 @@ def rgb_array(out: np.ndarray | None, height: int, width: int) -> np.ndarray:
         raise ValueError(f"out: expected a C-contiguous float32 array of shape {(height, width, 3)}, "
                          f"got {out.dtype} {out.shape}")
     return out
+
+
+#: Default size of the per-sample translucent store.
+DEFAULT_MAX_TRANSLUCENT = 4
+
+
+def check_max_translucent(k: int) -> int:
+    """K as an int, or ValueError naming the value (the store counts fit in a uint8)."""
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= 15:
+        raise ValueError(f"max_translucent: expected an integer in 1..15, got {k!r}")
+    return int(k)

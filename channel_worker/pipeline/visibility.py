@@ -26,17 +26,17 @@ from .binning import DEFAULT_SUBAREA, Bins, bin_features
 from .edges import Edges, setup_edges
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
-from .types import SUBPIXEL, Database, Image, SampleBuffer, ScreenPolygons, View, rgb_array
-
-#: Default size of the per-sample translucent store.
-DEFAULT_MAX_TRANSLUCENT = 4
-
-
-def check_max_translucent(k: int) -> int:
-    """K as an int, or ValueError naming the value (the store counts fit in a uint8)."""
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= 15:
-        raise ValueError(f"max_translucent: expected an integer in 1..15, got {k!r}")
-    return int(k)
+from .types import (
+    DEFAULT_MAX_TRANSLUCENT,
+    SUBPIXEL,
+    Database,
+    Image,
+    SampleBuffer,
+    ScreenPolygons,
+    View,
+    check_max_translucent,
+    rgb_array,
+)
 
 
 def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,

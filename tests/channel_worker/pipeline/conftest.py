@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from channel_worker.pipeline.scene import parse_scene
+from channel_worker.pipeline.types import ScreenPolygons
 
 
 def box_model(w: float, d: float, h: float, colour: str = "#a0a0a0") -> dict:
@@ -44,3 +45,25 @@ def box_model_factory():
 def linear(hex_colour: str) -> np.ndarray:
     srgb = np.array([int(hex_colour[i:i + 2], 16) for i in (1, 3, 5)]) / 255.0
     return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+
+
+def screen_polygons(polys: list, planes: list | None = None, opacity: list | None = None,
+                    layer: list | None = None) -> ScreenPolygons:
+    """ScreenPolygons from fixed-point (1/SUBPIXEL px) vertex lists, wound as project.py winds
+    them (negative doubled area); planes default to 1/z = 0.5 everywhere."""
+    fixed, start = [], [0]
+    for v in polys:
+        v = np.asarray(v, np.int64)
+        area2 = np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1])
+        assert area2 != 0
+        fixed.append(v if area2 < 0 else v[::-1])
+        start.append(start[-1] + len(v))
+    n = len(polys)
+    return ScreenPolygons(
+        fixed=np.concatenate(fixed) if n else np.zeros((0, 2), np.int64),
+        start=np.array(start, np.int64),
+        inv_z=np.array(planes if planes else [(0.0, 0.0, 0.5)] * n, np.float64).reshape(n, 3),
+        colour=np.zeros((n, 3), np.float32),
+        opacity=np.array(opacity if opacity else [1.0] * n, np.float32),
+        feature_id=np.arange(n, dtype=np.int32),
+        layer=np.array(layer if layer else [0] * n, np.int16))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from channel_worker.pipeline.render import render_frame
-from channel_worker.pipeline.types import EARTH_ID, ChannelSpec, Eyepoint, StageTimes
+from channel_worker.pipeline.types import ChannelSpec, Eyepoint, StageTimes
 
 CH = ChannelSpec.symmetric("c", 64, 48, 60.0)
 

@@ -25,6 +25,8 @@ from channel_worker.pipeline.types import (
     ScreenPolygons,
 )
 
+from .conftest import screen_polygons
+
 W, H = 40, 24
 S = SUBPIXEL
 HALF = S // 2
@@ -34,27 +36,6 @@ UP = make_view(ChannelSpec.symmetric("t", W, H, 60.0), Eyepoint.of(0.0, 0.0, 10.
 DB = parse_scene({"format": "ig-scene/1", "sky": {"colour": "#0000ff"},
                   "earth": {"colour": "#00ff00"}, "models": {}, "instances": []}, source="<test>")
 FEW = settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-
-
-def screen_polys(polys: list, planes: list | None = None, opacity: list | None = None,
-                 layer: list | None = None) -> ScreenPolygons:
-    """ScreenPolygons from fixed-point vertex lists, wound with negative doubled area."""
-    fixed, start = [], [0]
-    for v in polys:
-        v = np.asarray(v, np.int64)
-        area2 = np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1])
-        assert area2 != 0
-        fixed.append(v if area2 < 0 else v[::-1])
-        start.append(start[-1] + len(v))
-    n = len(polys)
-    return ScreenPolygons(
-        fixed=np.concatenate(fixed) if n else np.zeros((0, 2), np.int64),
-        start=np.array(start, np.int64),
-        inv_z=np.array(planes if planes else [(0.0, 0.0, 0.5)] * n, np.float64).reshape(n, 3),
-        colour=np.zeros((n, 3), np.float32),
-        opacity=np.array(opacity if opacity else [1.0] * n, np.float32),
-        feature_id=np.arange(n, dtype=np.int32),
-        layer=np.array(layer if layer else [0] * n, np.int16))
 
 
 def edge_test(v: np.ndarray) -> np.ndarray:
@@ -139,7 +120,7 @@ def convex_hull(points) -> list:
 @given(st.lists(vertex, min_size=3, max_size=3))
 def test_triangle_coverage_is_the_exact_edge_test(tri):
     assume(area2(tri) != 0)
-    screen = screen_polys([tri])
+    screen = screen_polygons([tri])
     np.testing.assert_array_equal(covered(screen), edge_test(polygon(screen, 0)))
 
 
@@ -148,7 +129,7 @@ def test_triangle_coverage_is_the_exact_edge_test(tri):
 def test_convex_polygon_coverage_is_the_exact_edge_test(points):
     hull = convex_hull(points)
     assume(len(hull) >= 3)
-    screen = screen_polys([hull])
+    screen = screen_polygons([hull])
     np.testing.assert_array_equal(covered(screen), edge_test(polygon(screen, 0)))
 
 
@@ -158,14 +139,14 @@ def test_any_polygon_covers_the_intersection_of_its_half_planes(points):
     # Snapping can leave a polygon slightly non-convex; the edge test then keeps the
     # intersection of the half-planes, and so must the scan line.
     assume(area2(points) != 0)
-    screen = screen_polys([points])
+    screen = screen_polygons([points])
     np.testing.assert_array_equal(covered(screen), edge_test(polygon(screen, 0)))
 
 
 def test_slightly_reflex_quad_is_extended_and_exact():
     # The vertex (20 S, 10 S - 1) dents the top edge by 1/256 pixel.
     quad = [(2 * S, 10 * S), (20 * S, 10 * S + 1), (38 * S, 10 * S), (20 * S, 20 * S)]
-    screen = screen_polys([quad])
+    screen = screen_polygons([quad])
     buf = scanline_visibility(screen, UP, DB)
     assert buf.stats["nonconvex_faces"] == 1
     np.testing.assert_array_equal(buf.opaque[..., 0] >= 0, edge_test(polygon(screen, 0)))
@@ -177,12 +158,12 @@ def test_two_triangles_sharing_an_edge_cover_each_centre_once(quad):
     hull = convex_hull(quad)
     assume(len(hull) == 4)
     a, b = [hull[0], hull[1], hull[2]], [hull[0], hull[2], hull[3]]
-    alone_a = covered(screen_polys([a]))
-    alone_b = covered(screen_polys([b]))
+    alone_a = covered(screen_polygons([a]))
+    alone_b = covered(screen_polygons([b]))
     assert not (alone_a & alone_b).any()  # no double cover
-    whole = screen_polys([hull])
+    whole = screen_polygons([hull])
     np.testing.assert_array_equal(alone_a | alone_b, edge_test(polygon(whole, 0)))  # no crack
-    together = scanline_visibility(screen_polys([a, b]), UP, DB).opaque[..., 0]
+    together = scanline_visibility(screen_polygons([a, b]), UP, DB).opaque[..., 0]
     np.testing.assert_array_equal(together == 0, alone_a)
     np.testing.assert_array_equal(together == 1, alone_b)
 
@@ -193,11 +174,11 @@ def test_fan_around_a_vertex_on_a_pixel_centre_covers_it_once():
     ring = [(centre[0] + round(3000 * np.cos(t)), centre[1] + round(2000 * np.sin(t)))
             for t in angles]
     fan = [[centre, ring[i], ring[(i + 1) % len(ring)]] for i in range(len(ring))]
-    counts = sum(covered(screen_polys([t])).astype(int) for t in fan)
+    counts = sum(covered(screen_polygons([t])).astype(int) for t in fan)
     assert counts[12, 20] == 1
     assert counts.max() == 1
-    np.testing.assert_array_equal(counts == 1, edge_test(polygon(screen_polys([ring]), 0)))
-    together = scanline_visibility(screen_polys(fan), UP, DB)
+    np.testing.assert_array_equal(counts == 1, edge_test(polygon(screen_polygons([ring]), 0)))
+    together = scanline_visibility(screen_polygons(fan), UP, DB)
     assert together.stats["multiple_edges"] > 0  # the vertex row meets several edges at once
     np.testing.assert_array_equal(together.opaque[..., 0] >= 0, counts == 1)
 
@@ -205,14 +186,14 @@ def test_fan_around_a_vertex_on_a_pixel_centre_covers_it_once():
 def test_edges_through_pixel_centres_follow_the_top_left_rule():
     # Left/top edges through centres keep them, right/bottom edges through centres do not.
     x0, x1, y0, y1 = 2 * S + HALF, 10 * S + HALF, 3 * S + HALF, 8 * S + HALF
-    left = screen_polys([[(x0, y0), (x1, y0), (x1, y1), (x0, y1)]])
+    left = screen_polygons([[(x0, y0), (x1, y0), (x1, y1), (x0, y1)]])
     expect = np.zeros((H, W), bool)
     expect[3:8, 2:10] = True
     np.testing.assert_array_equal(covered(left), expect)
     # Its right neighbour shares the vertical edge x1: every column exactly once.
     x2 = 17 * S + HALF
     both = scanline_visibility(
-        screen_polys([[(x0, y0), (x1, y0), (x1, y1), (x0, y1)],
+        screen_polygons([[(x0, y0), (x1, y0), (x1, y1), (x0, y1)],
                       [(x1, y0), (x2, y0), (x2, y1), (x1, y1)]]), UP, DB).opaque[..., 0]
     assert (both[3:8, 2:10] == 0).all() and (both[3:8, 10:17] == 1).all()
     assert (both[:3] < 0).all() and (both[8:] < 0).all() and (both[:, 17:] < 0).all()
@@ -224,7 +205,7 @@ def test_near_quad_hides_far_quad_in_either_order():
     for order in ((far, near), (near, far)):
         planes = [(0.0, 0.0, 0.2), (0.0, 0.0, 0.5)] if order[0] is far else \
             [(0.0, 0.0, 0.5), (0.0, 0.0, 0.2)]
-        buf = scanline_visibility(screen_polys(list(order), planes), UP, DB)
+        buf = scanline_visibility(screen_polygons(list(order), planes), UP, DB)
         near_index = 1 if order[0] is far else 0
         ids = buf.opaque[..., 0]
         assert (ids[6:20, 10:30] == near_index).all()  # overlap: the near quad
@@ -243,7 +224,7 @@ def test_marking_on_its_runway_is_seen_wherever_it_lies():
     runway = [(4 * S, 1 * S), (36 * S, 1 * S), (36 * S, 23 * S), (4 * S, 23 * S)]
     marking = [(18 * S, 2 * S), (22 * S, 2 * S), (22 * S, 5 * S), (18 * S, 5 * S)]
     building = [(30 * S, 10 * S), (38 * S, 10 * S), (38 * S, 20 * S), (30 * S, 20 * S)]
-    buf = scanline_visibility(screen_polys([runway, marking, building],
+    buf = scanline_visibility(screen_polygons([runway, marking, building],
                                            [plane, plane, (0.0, 0.0, 1.0)], layer=[0, 1, 0]),
                               UP, DB)
     ids = buf.opaque[..., 0]
@@ -256,7 +237,7 @@ def test_translucent_faces_ahead_of_the_opaque_one_nearest_first():
     quad = [(0, 0), (W * S, 0), (W * S, H * S), (0, H * S)]
     # Opaque at z = 2; translucent at z = 1.9 .. 1.0 (nearer) and one at z = 3 (behind it).
     planes = [(0.0, 0.0, 0.5)] + [(0.0, 0.0, 1.0 / z) for z in (1.9, 1.5, 1.2, 1.1, 1.0, 3.0)]
-    screen = screen_polys([quad] * 7, planes, [1.0] + [0.5] * 6)
+    screen = screen_polygons([quad] * 7, planes, [1.0] + [0.5] * 6)
     buf = scanline_visibility(screen, UP, DB, max_translucent=3)
     assert buf.translucent.shape == (H, W, 1, 3)
     assert (buf.opaque == 0).all()
@@ -282,7 +263,7 @@ def random_scene(seed: int, n: int, translucent_share: float) -> ScreenPolygons:
         polys.append(t)
         planes.append((rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01), rng.uniform(0.5, 1.0)))
         opacity.append(0.5 if rng.random() < translucent_share else 1.0)
-    return screen_polys(polys, planes, opacity, layer=list(rng.integers(0, 2, n)))
+    return screen_polygons(polys, planes, opacity, layer=list(rng.integers(0, 2, n)))
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
@@ -320,7 +301,7 @@ def horizon_reference(view) -> np.ndarray:
 
 
 def empty() -> ScreenPolygons:
-    return screen_polys([])
+    return screen_polygons([])
 
 
 @pytest.mark.parametrize("roll", [0.0, 30.0, -70.0, 180.0])

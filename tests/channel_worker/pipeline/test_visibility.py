@@ -20,30 +20,12 @@ from channel_worker.pipeline.types import (
 )
 from channel_worker.pipeline.visibility import coverage_counts, resolve_visibility
 
+from .conftest import screen_polygons
+
 W, H = 40, 24
 # Looking straight up: every uncovered sample sees the sky.
 UP = Eyepoint.of(0.0, 0.0, 10.0, 0.0, 90.0, 0.0)
 VIEW = make_view(ChannelSpec.symmetric("t", W, H, 60.0), UP)
-
-
-def screen_polys(tris: list[np.ndarray], planes: list[tuple[float, float, float]],
-                 opacity: list[float] | None = None, layer: list[int] | None = None) -> ScreenPolygons:
-    """ScreenPolygons from fixed-point vertex lists, wound with negative doubled area."""
-    fixed, start = [], [0]
-    for t in tris:
-        t = np.asarray(t, np.int64)
-        area2 = np.sum(t[:, 0] * np.roll(t[:, 1], -1) - np.roll(t[:, 0], -1) * t[:, 1])
-        assert area2 != 0
-        fixed.append(t if area2 < 0 else t[::-1])
-        start.append(start[-1] + len(t))
-    n = len(tris)
-    return ScreenPolygons(
-        fixed=np.concatenate(fixed), start=np.array(start, np.int64),
-        inv_z=np.array(planes, np.float64),
-        colour=np.random.default_rng(0).random((n, 3)).astype(np.float32),
-        opacity=np.array(opacity if opacity else [1.0] * n, np.float32),
-        feature_id=np.arange(n, dtype=np.int32),
-        layer=np.array(layer if layer else [0] * n, np.int16))
 
 
 def brute_force(screen: ScreenPolygons, offsets: np.ndarray, k: int):
@@ -92,7 +74,7 @@ def random_scene(seed: int, n: int, translucent_share: float = 0.0) -> ScreenPol
         # 1/z planes positive over the raster, some tilted steeply.
         planes.append((rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01), rng.uniform(0.5, 1.0)))
         opacity.append(0.5 if rng.random() < translucent_share else 1.0)
-    return screen_polys(tris, planes, opacity)
+    return screen_polygons(tris, planes, opacity)
 
 
 @pytest.mark.parametrize("subarea", [1, 4, 8, 16, 32])
@@ -127,7 +109,7 @@ def test_translucent_store_keeps_the_nearest_k_and_counts_the_rest():
     quad = np.array([[0, 0], [W * SUBPIXEL, 0], [W * SUBPIXEL, H * SUBPIXEL], [0, H * SUBPIXEL]])
     # Opaque at 1/z 0.5 (z = 2); translucent at z = 1.9 .. 1.0 (nearer) and one at z = 3 (behind).
     planes = [(0.0, 0.0, 0.5)] + [(0.0, 0.0, 1.0 / z) for z in (1.9, 1.5, 1.2, 1.1, 1.0, 3.0)]
-    screen = screen_polys([quad] * 7, planes, [1.0] + [0.5] * 6)
+    screen = screen_polygons([quad] * 7, planes, [1.0] + [0.5] * 6)
     offsets = sample_pattern("rgss4")
     edges = setup_edges(screen, W, H)
     buf = resolve_visibility(screen, edges, bin_features(edges, screen.start, W, H, 8), VIEW,
@@ -141,7 +123,7 @@ def test_translucent_store_keeps_the_nearest_k_and_counts_the_rest():
 
 def test_earth_and_sky_fill_uncovered_samples():
     view = make_view(ChannelSpec.symmetric("t", W, H, 60.0), Eyepoint.of(0, 0, 10, 0, 0, 0))
-    screen = screen_polys([np.array([[0, 0], [256, 0], [0, 256]])], [(0.0, 0.0, 0.5)])
+    screen = screen_polygons([np.array([[0, 0], [256, 0], [0, 256]])], [(0.0, 0.0, 0.5)])
     edges = setup_edges(screen, W, H)
     buf = resolve_visibility(screen, edges, bin_features(edges, screen.start, W, H, 8), view,
                              sample_pattern(1))
