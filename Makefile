@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed-stamp
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip >/dev/null
-	$(PY) -m pip install -e '.[test,devices]'
+	$(PY) -m pip install -e '.[test,devices,gis]'
 	touch $(STAMP)
 
 demo: $(STAMP)

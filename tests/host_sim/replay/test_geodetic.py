@@ -45,3 +45,26 @@ def test_float64_keeps_millimetres_far_from_the_origin():
     b = geodetic.enu(np.array([45.5]), np.array([7.5]), np.array([1000.001]), origin)[0]
     assert np.linalg.norm(b - a) == pytest.approx(0.001, abs=1e-6)
     assert a.dtype == np.float64
+
+
+@pytest.mark.parametrize("origin", [(47.0, 8.0, 500.0), (89.9, 10.0, 0.0), (-89.5, -120.0, 2000.0),
+                                    (0.0, 179.9, -50.0)])
+def test_enu_to_geodetic_round_trip_to_1000_km(origin):
+    rng = np.random.default_rng(11)
+    east = np.concatenate([[0.0, 1e6, 0.0, -1e6], rng.uniform(-1e6, 1e6, 200)])
+    north = np.concatenate([[0.0, 0.0, 1e6, -7e5], rng.uniform(-1e6, 1e6, 200)])
+    up = np.concatenate([[0.0, -78e3, -78e3, 5.0], rng.uniform(-1e5, 1e4, 200)])
+    lat, lon, h = geodetic.geodetic_of_enu(east, north, up, origin)
+    assert np.all(np.abs(lat) <= 90.0)
+    back = geodetic.enu(lat, lon, h, origin)
+    np.testing.assert_allclose(back, np.stack([east, north, up], axis=-1), atol=1e-6)  # a micrometre
+    assert lat[0] == pytest.approx(origin[0], abs=1e-12) and h[0] == pytest.approx(origin[2], abs=1e-6)
+
+
+def test_geodetic_of_ecef_at_the_poles_and_the_equator():
+    lat, lon, h = geodetic.geodetic_of_ecef(np.array([[0.0, 0.0, 6356752.314245 + 10.0],
+                                                      [0.0, 0.0, -6356752.314245],
+                                                      [6378137.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(lat, [90.0, -90.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(h, [10.0, 0.0, 0.0], atol=1e-6)
+    assert lon[2] == 0.0
