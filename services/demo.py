@@ -46,7 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also write a linear EXR every N frames (default 30; 0: never)")
     parser.add_argument("--out", default="out/demo",
                         help="output directory: frames/, report.json, rig.toml, logs/ (default out/demo)")
-    parser.add_argument("--scene", default=None, help="scene JSON (default: the bundled airfield)")
+    parser.add_argument("--scene", default=None,
+                        help="scene JSON (default: the bundled airfield on the bundled terrain, "
+                             "with haze and clouds)")
     parser.add_argument("--rig", default=None,
                         help="rig file (default: the bundled three-channel rig); its addresses are replaced "
                              "by free ports on 127.0.0.1")
@@ -196,6 +198,16 @@ def run(args: argparse.Namespace) -> int:
     if args.scene and not Path(args.scene).is_file():
         error("demo", f"--scene: {args.scene!r} is not a file")
         return EXIT_BAD_INPUT
+    from channel_worker.pipeline.scene import SceneError, demo_scene_path, load_scene
+
+    scene_path = args.scene or str(demo_scene_path())
+    try:
+        # Validates the scene before anything starts, and builds the bundled terrain once here
+        # (a few seconds on first use) instead of in every worker at once.
+        load_scene(scene_path)
+    except SceneError as exc:
+        error("demo", exc)
+        return EXIT_BAD_INPUT
     if args.width or args.height:
         first = rig.channels[0].spec
         rig = rig.with_size(args.width or first.width, args.height or first.height)
@@ -216,7 +228,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"ig demo: {len(rig.channels)} channels ({', '.join(rig.channel_names)}), "
           f"{rig.channels[0].spec.width} x {rig.channels[0].spec.height} each, {expected} frames at "
           f"{args.rate:g} Hz; logs in {out / 'logs'}", flush=True)
-    scene = ["--scene", args.scene] if args.scene else []
+    scene = ["--scene", scene_path]
 
     # Ctrl-C and SIGTERM only raise a flag that the watch loop reads every second: an exception
     # raised from a handler can land inside a gRPC call of the progress poll and be lost there.

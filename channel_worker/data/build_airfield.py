@@ -47,6 +47,9 @@ Vec3 = tuple[float, float, float]
 
 #: Where the bundled scene lives (channel_worker.pipeline.scene.bundled_scene_path()).
 OUTPUT = Path(__file__).resolve().with_name("airfield.json")
+#: The same airfield on the bundled terrain, with haze: the demo's scene
+#: (channel_worker.pipeline.scene.demo_scene_path()).
+TERRAIN_OUTPUT = Path(__file__).resolve().with_name("airfield_terrain.json")
 
 #: Vertex coordinates are rounded to this many decimals of a metre.
 _DECIMALS = 3
@@ -673,6 +676,21 @@ def build_scene() -> dict[str, Any]:
     }
 
 
+def build_terrain_scene() -> dict[str, Any]:
+    """The airfield on the bundled Jacksboro terrain (its pad flattened to z = 0 under the
+    airfield, channel_worker/terrain/bundled.py), in a light summer haze."""
+    doc = build_scene()
+    doc["name"] = "bundled airfield on the Jacksboro terrain"
+    doc["terrain"] = {"database": "bundled:jacksboro", "polygon_margin_m": 1.0}
+    doc["haze"] = {"visibility_m": 30000.0, "scale_height_m": 1500.0, "base_height_m": 0.0,
+                   "colour": "#c4ccd6"}
+    # Fair-weather cumulus a kilometre above the airfield, over the terrain's area and beyond.
+    doc["clouds"] = {"extent_m": [-30000.0, -30000.0, 30000.0, 30000.0], "cell_m": 400.0,
+                     "base_m": 1100.0, "thickness_m": 700.0, "cover": 0.3,
+                     "extinction_per_m": 0.02, "colour": "#f4f6fa", "seed": 7}
+    return doc
+
+
 def model_doc(parts: Sequence[Part]) -> dict[str, Any]:
     """One model's JSON: the parts' vertices concatenated, face indices rebased; a face's "on"
     is an index among the model's faces in the order the parts list them."""
@@ -750,22 +768,27 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m channel_worker.data.build_airfield",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--output", type=Path, default=OUTPUT, help=f"default: {OUTPUT}")
+    parser.add_argument("--terrain-output", type=Path, default=TERRAIN_OUTPUT,
+                        help=f"the airfield on the bundled terrain; default: {TERRAIN_OUTPUT}")
     parser.add_argument("--check", action="store_true",
                         help="do not write; exit 1 if the file differs from what would be written")
     args = parser.parse_args(argv)
     doc = build_scene()
-    text = render_json(doc)
     stats = ", ".join(f"{k} {v}" for k, v in statistics(doc).items())
+    outputs = ((args.output, render_json(doc)),
+               (args.terrain_output, render_json(build_terrain_scene())))
     if args.check:
-        current = args.output.read_text(encoding="utf-8") if args.output.exists() else None
-        if current != text:
-            print(f"{args.output} is out of date; run python -m channel_worker.data.build_airfield",
-                  file=sys.stderr)
-            return 1
-        print(f"{args.output} is up to date ({stats})")
+        for path, text in outputs:
+            current = path.read_text(encoding="utf-8") if path.exists() else None
+            if current != text:
+                print(f"{path} is out of date; run python -m channel_worker.data.build_airfield",
+                      file=sys.stderr)
+                return 1
+            print(f"{path} is up to date ({stats})")
         return 0
-    args.output.write_text(text, encoding="utf-8")
-    print(f"wrote {args.output} ({stats})")
+    for path, text in outputs:
+        path.write_text(text, encoding="utf-8")
+        print(f"wrote {path} ({stats})")
     return 0
 
 

@@ -7,12 +7,32 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .types import EARTH_ID
+from ._cloud_kernels import through_air
+from .types import BACKGROUND_ID, EARTH_ID
 
 
 @njit(cache=True, inline="always")
-def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth):
-    """Linear RGB of one sample: its translucent features front to back over the opaque one."""
+def _polygon_colour(p, y, x, s, colour, haze, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on, cloud):
+    """Colour of polygon p at sample s of pixel (x, y); with haze (haze[0] != 0) seen through
+    it at the polygon's range there (1/z from its exact depth plane), and through the pixel's
+    cloud if that range lies beyond the cloud's entry range."""
+    r, g, b = colour[p, 0], colour[p, 1], colour[p, 2]
+    if haze[0] == 0.0 and not cloud_on:
+        return r, g, b
+    a = tx[x, s]
+    c = ty[y, s]
+    ray = math.sqrt(a * a + c * c + 1.0)
+    iz = inv_z[p, 0] * sxs[x, s] + (inv_z[p, 1] * sys_[y, s] + inv_z[p, 2])
+    # Guards: polygons are clipped to z >= near > 0 (1/z > 0); ray >= 1.
+    return through_air(haze, cloud_on, cloud, y, x, ray / max(iz, 1e-300),
+                       (dz_row[0] * a + dz_row[1] * c + dz_row[2]) / ray, r, g, b)
+
+
+@njit(cache=True, inline="always")
+def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth, bg_rgb, haze, inv_z, sxs,
+           sys_, tx, ty, dz_row, cloud_on, cloud):
+    """Linear RGB of one sample: its translucent features front to back over the opaque one,
+    each hazed by its own range when haze[0] != 0."""
     r = np.float32(0.0)
     g = np.float32(0.0)
     b = np.float32(0.0)
@@ -20,20 +40,26 @@ def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth):
     for q in range(count[y, x, s]):
         p = trans[y, x, s, q]
         a = opacity[p] * through
-        r += a * colour[p, 0]
-        g += a * colour[p, 1]
-        b += a * colour[p, 2]
+        cr, cg, cb = _polygon_colour(p, y, x, s, colour, haze, inv_z, sxs, sys_, tx, ty, dz_row,
+                                     cloud_on, cloud)
+        r += a * cr
+        g += a * cg
+        b += a * cb
         through *= np.float32(1.0) - opacity[p]
     f = opaque[y, x, s]
     if f >= 0:
-        return r + through * colour[f, 0], g + through * colour[f, 1], b + through * colour[f, 2]
+        cr, cg, cb = _polygon_colour(f, y, x, s, colour, haze, inv_z, sxs, sys_, tx, ty, dz_row,
+                                     cloud_on, cloud)
+        return r + through * cr, g + through * cg, b + through * cb
+    if f == BACKGROUND_ID:
+        return r + through * bg_rgb[y, x, 0], g + through * bg_rgb[y, x, 1], b + through * bg_rgb[y, x, 2]
     if f == EARTH_ID:
         return r + through * earth[0], g + through * earth[1], b + through * earth[2]
     return r + through * sky[0], g + through * sky[1], b + through * sky[2]
 
 
 @njit(cache=True, inline="always")
-def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above):
+def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above, bg_range):
     """Nearest surface seen by the pixel: its nearest polygon or, nearer, the earth plane.
 
     Range to the earth along the ray (tx, ty, 1): |ray| * height_above / -dz; dz < 0 for
@@ -42,7 +68,9 @@ def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above):
     """
     nearest = polygon_range[y, x]
     for s in range(opaque.shape[2]):
-        if opaque[y, x, s] == EARTH_ID:
+        if opaque[y, x, s] == BACKGROUND_ID:
+            nearest = min(nearest, bg_range[y, x])
+        elif opaque[y, x, s] == EARTH_ID:
             a = tx[x, s]
             c = ty[y, s]
             dz = dz_row[0] * a + dz_row[1] * c + dz_row[2]
@@ -52,7 +80,8 @@ def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above):
 
 @njit(cache=True, parallel=True)
 def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
-               height_above, want_range, out_rgb, out_range):
+               height_above, want_range, bg_rgb, bg_range, haze, inv_z, sxs, sys_, cloud_on,
+               cloud, out_rgb, out_range):
     """Shade and average the samples of each pixel in one pass (no sample colour buffer).
 
     A pixel whose samples all see one feature and nothing translucent (most pixels) takes that
@@ -68,6 +97,8 @@ def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth,
                 if opaque[y, x, s] != f0 or count[y, x, s] != 0:
                     uniform = False
                     break
+            if uniform and (haze[0] != 0.0 or cloud_on or f0 == BACKGROUND_ID):
+                uniform = False  # hazed colours vary per sample; the background per pixel
             if uniform:
                 if f0 >= 0:
                     out_rgb[y, x, 0] = colour[f0, 0]
@@ -83,7 +114,9 @@ def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth,
                 g = np.float32(0.0)
                 b = np.float32(0.0)
                 for s in range(s_count):
-                    sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth)
+                    sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth,
+                                        bg_rgb, haze, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on,
+                                        cloud)
                     r += sr
                     g += sg
                     b += sb
@@ -91,23 +124,28 @@ def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth,
                 out_rgb[y, x, 1] = g * inv_s
                 out_rgb[y, x, 2] = b * inv_s
             if want_range:
-                out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above)
+                out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above,
+                                               bg_range)
 
 
 @njit(cache=True, parallel=True)
 def shade_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
-                 height_above, want_range, out_samples, out_range):
+                 height_above, want_range, bg_rgb, bg_range, haze, inv_z, sxs, sys_, cloud_on,
+                 cloud, out_samples, out_range):
     """Every sample's colour, for filters that also read neighbouring pixels' samples."""
     h, w, s_count = opaque.shape
     for y in prange(h):
         for x in range(w):
             for s in range(s_count):
-                sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth)
+                sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth,
+                                    bg_rgb, haze, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on,
+                                    cloud)
                 out_samples[y, x, s, 0] = sr
                 out_samples[y, x, s, 1] = sg
                 out_samples[y, x, s, 2] = sb
             if want_range:
-                out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above)
+                out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above,
+                                               bg_range)
 
 
 @njit(cache=True, parallel=True)

@@ -7,11 +7,15 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .types import EARTH_ID, SKY_ID
+from ._cloud_kernels import through_air
+from .types import BACKGROUND_ID, EARTH_ID, SKY_ID
 
 #: Relative margin on the early stop of a sub-area list: 1/z at a sample inside a polygon
 #: can exceed the polygon's largest vertex 1/z only by rounding (~1e-16 relative).
 _EARLY_STOP_MARGIN = 1e-9
+
+#: Marks a sub-area whose samples do not all see one thing (not a feature identity).
+_MIXED = -100
 
 
 @njit(cache=True, inline="always")
@@ -39,7 +43,8 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
                       poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity,
                       layer, off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
                       out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
-                      fused, colour, sky, earth, dz_row, height_above, out_rgb):
+                      fused, colour, sky, earth, dz_row, height_above, out_rgb, bg_on, bg_rgb,
+                      bg_iz, bg_range, haze, cloud_on, cloud):
     """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
@@ -57,6 +62,13 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
     the box-filtered pixel colour to out_rgb (and, with want_range, the pixel's nearest range
     including the earth plane, dz_row / height_above as in the resolve stage): the seed's
     per-sub-area pixel output, with no sample-sized array in memory.
+
+    bg_on: the frame has a Background (terrain stage): every sample starts out holding it as
+    its nearest opaque feature (BACKGROUND_ID at bg_iz, nothing where bg_iz is 0), so polygons
+    behind the terrain are hidden and a list stops early behind a hill; what no polygon covers
+    takes the background's colour bg_rgb and range bg_range. haze: haze_params (polygons are
+    hazed per sample by their range when haze[0] != 0). cloud_on: cloud (H, W, 5) holds each
+    pixel's cloud (Background.cloud), laid over every polygon sample beyond its entry range.
     """
     n_tiles = tile_start.shape[0] - 1
     s_count = off_fixed.shape[0]
@@ -87,7 +99,8 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
                   off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
                   out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
                   o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
-                  fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step)
+                  fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step, bg_on,
+                  bg_rgb, bg_iz, bg_range, haze, cloud_on, cloud)
 
 
 @njit(cache=True)
@@ -96,12 +109,24 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
           off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
           out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
           o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
-          fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step):
+          fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step, bg_on, bg_rgb,
+          bg_iz, bg_range, haze, cloud_on, cloud):
     """One sub-area of visibility_kernel, with the chunk's sample store as scratch."""
     tx0, ty0, tx1, ty1 = _subarea_rect(t, tiles_x, size, width, height)
     tw = tx1 - tx0
-    background = _background(tx0, ty0, size, horizon)
+    # With a Background the sky and earth come painted by the terrain stage, per pixel.
+    background = 0 if bg_on else _background(tx0, ty0, size, horizon)
     n = tw * (ty1 - ty0) * s_count
+    if fused and bg_on and tile_start[t] == tile_start[t + 1]:
+        # No polygon here: the background as the terrain stage made it.
+        for y in range(ty0, ty1):
+            for x in range(tx0, tx1):
+                out_rgb[y, x, 0] = bg_rgb[y, x, 0]
+                out_rgb[y, x, 1] = bg_rgb[y, x, 1]
+                out_rgb[y, x, 2] = bg_rgb[y, x, 2]
+                if want_range:
+                    out_range[y, x] = bg_range[y, x]
+        return
     if fused and tile_start[t] == tile_start[t + 1]:
         # Nothing in the sub-area: the background alone, one colour unless the horizon
         # crosses it (and, with ranges, only if it is sky: the earth's range varies).
@@ -110,8 +135,25 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
                             out_range):
             return
     # Only the identities need clearing: 1/z and layer are read only where an identity is set.
-    for i in range(n):
-        o_id[i] = -1
+    covered = 0
+    if bg_on:
+        # The terrain is the first opaque feature of every sample it covers; its layer is
+        # below every polygon's, so a polygon at exactly its depth is seen.
+        for y in range(ty0, ty1):
+            for x in range(tx0, tx1):
+                base = ((y - ty0) * tw + (x - tx0)) * s_count
+                for s in range(s_count):
+                    iz = bg_iz[y, x, s]
+                    if iz > 0.0:
+                        o_id[base + s] = BACKGROUND_ID
+                        o_iz[base + s] = iz
+                        o_lay[base + s] = -1
+                        covered += 1
+                    else:
+                        o_id[base + s] = -1
+    else:
+        for i in range(n):
+            o_id[i] = -1
     if any_translucent:
         for i in range(n):
             t_cnt[i] = 0
@@ -123,7 +165,6 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
             if opacity[entry_polygon[k]] < 1.0:
                 trans_here = True
                 break
-    covered = 0
     # The farthest stored opaque 1/z only grows as nearer features replace samples, so a stale
     # value is a safe lower bound; it is recomputed only when a stop might be missed by it.
     farthest = 0.0
@@ -181,10 +222,10 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
                     px = x * subpixel + ox
                     i = ((y - ty0) * tw + (x - tx0)) * s_count + s
                     iz = a * (px * inv_sub) + (b * (py * inv_sub) + c)
-                    if o_id[i] >= 0 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], o_id[i]):
+                    if o_id[i] != -1 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], o_id[i]):
                         continue
                     if opaque:
-                        if o_id[i] < 0:
+                        if o_id[i] == -1:
                             covered += 1
                         o_iz[i] = iz
                         o_id[i] = p
@@ -231,11 +272,13 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
         uniform = o_id[0]
         for i in range(n):
             if o_id[i] != uniform or (any_translucent and t_cnt[i] != 0):
-                uniform = -3
+                uniform = _MIXED
                 break
-        if uniform < 0 and uniform != -3:
-            uniform = background if background != 0 else -3
-        if uniform != -3 and not want_range:
+        if uniform < 0 and uniform != _MIXED:
+            uniform = background if background != 0 else _MIXED
+        if haze[0] != 0.0 or cloud_on:
+            uniform = _MIXED  # hazed or clouded colours vary with range
+        if uniform != _MIXED and not want_range:
             if uniform >= 0:
                 cr, cg, cb = colour[uniform, 0], colour[uniform, 1], colour[uniform, 2]
             elif uniform == EARTH_ID:
@@ -249,8 +292,9 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
                     out_rgb[y, x, 2] = cb
             return
         _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon,
-                    mapping, background, want_range, o_iz, o_id, t_id, t_cnt, any_translucent,
-                    opacity, colour, sky, earth, dz_row, height_above, out_rgb, out_range)
+                    mapping, background, want_range, o_iz, o_id, t_iz, t_id, t_cnt,
+                    any_translucent, opacity, colour, sky, earth, dz_row, height_above, out_rgb,
+                    out_range, bg_on, bg_rgb, bg_range, haze, cloud_on, cloud)
         return
     for y in range(ty0, ty1):
         sy_row = (y * subpixel) * inv_sub
@@ -260,7 +304,9 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
             for s in range(s_count):
                 i = base + s
                 f = o_id[i]
-                if f < 0:
+                if f < 0 and bg_on:
+                    f = BACKGROUND_ID  # resolve reads its colour and range from the Background
+                elif f < 0:
                     if background != 0:
                         f = background
                     else:
@@ -344,9 +390,9 @@ def _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, t
                 # identically for every feature, so coplanar ties stay exact.
                 iz = a * (px * inv_sub) + fy
                 f = o_id[i]
-                if f >= 0 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], f):
+                if f != -1 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], f):
                     continue
-                if f < 0:
+                if f == -1:
                     added += 1
                 o_iz[i] = iz
                 o_id[i] = p
@@ -403,10 +449,15 @@ def _fill_background(tx0, ty0, tx1, ty1, background, sky, earth, want_range, out
 
 @njit(cache=True)
 def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon, mapping,
-                background, want_range, o_iz, o_id, t_id, t_cnt, any_translucent, opacity,
-                colour, sky, earth, dz_row, height_above, out_rgb, out_range):
+                background, want_range, o_iz, o_id, t_iz, t_id, t_cnt, any_translucent, opacity,
+                colour, sky, earth, dz_row, height_above, out_rgb, out_range, bg_on, bg_rgb,
+                bg_range, haze, cloud_on, cloud):
     """Pixel outputs of one sub-area: each sample shaded (translucent features front to back
-    over the opaque one, or sky / earth), averaged over the pixel; optionally the range."""
+    over the opaque one, or the background: terrain, sky, earth), averaged over the pixel;
+    optionally the range. With haze each polygon sample is hazed by its own range, and with
+    clouds seen through the pixel's cloud if it lies beyond the cloud's entry range."""
+    hazy = haze[0] != 0.0
+    by_range = hazy or cloud_on
     kx, ky, k0 = horizon[0], horizon[1], horizon[2]
     sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
     inv_s = 1.0 / s_count
@@ -415,7 +466,7 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
             base = ((y - ty0) * tw + (x - tx0)) * s_count
-            if not want_range:
+            if not want_range and not by_range:
                 # Most pixels, even in a busy sub-area, see one thing with every sample.
                 f0 = o_id[base]
                 same = f0 >= 0 or background != 0
@@ -449,24 +500,47 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
             for s in range(s_count):
                 i = base + s
                 through = 1.0
+                ray = 1.0
+                sin_el = 0.0
+                if by_range:
+                    rx = ((x * subpixel + off_fixed[s, 0]) * inv_sub - sx_off) / sx_scale
+                    ry = ((y * subpixel + off_fixed[s, 1]) * inv_sub - sy_off) / sy_scale
+                    ray = math.sqrt(rx * rx + ry * ry + 1.0)
+                    sin_el = (dz_row[0] * rx + dz_row[1] * ry + dz_row[2]) / ray  # guard: ray >= 1
                 if any_translucent:
                     for q in range(t_cnt[i]):
                         p = t_id[i, q]
                         a = opacity[p] * through
-                        r += a * colour[p, 0]
-                        g += a * colour[p, 1]
-                        b += a * colour[p, 2]
+                        cr, cg, cb = colour[p, 0], colour[p, 1], colour[p, 2]
+                        if by_range:
+                            # Guard: translucent features are clipped to z >= near > 0 too.
+                            cr, cg, cb = through_air(haze, cloud_on, cloud, y, x, ray / t_iz[i, q],
+                                                  sin_el, cr, cg, cb)
+                        r += a * cr
+                        g += a * cg
+                        b += a * cb
                         through *= 1.0 - opacity[p]
                 f = o_id[i]
                 if f >= 0:
-                    r += through * colour[f, 0]
-                    g += through * colour[f, 1]
-                    b += through * colour[f, 2]
+                    cr, cg, cb = colour[f, 0], colour[f, 1], colour[f, 2]
+                    if by_range:
+                        cr, cg, cb = through_air(haze, cloud_on, cloud, y, x, ray / o_iz[i], sin_el,
+                                              cr, cg, cb)
+                    r += through * cr
+                    g += through * cg
+                    b += through * cb
                     if want_range:
                         rx = ((x * subpixel + off_fixed[s, 0]) * inv_sub - sx_off) / sx_scale
                         ry = ((y * subpixel + off_fixed[s, 1]) * inv_sub - sy_off) / sy_scale
                         # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
                         near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) / o_iz[i])
+                    continue
+                if bg_on:
+                    r += through * bg_rgb[y, x, 0]
+                    g += through * bg_rgb[y, x, 1]
+                    b += through * bg_rgb[y, x, 2]
+                    if want_range:
+                        near_range = min(near_range, bg_range[y, x])
                     continue
                 f = background
                 if f == 0 or (want_range and f == EARTH_ID):

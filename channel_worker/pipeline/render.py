@@ -19,6 +19,7 @@ from .project import project
 from .resolve import check_filter, resolve
 from .samples import sample_pattern
 from .scanline import scanline_visibility
+from .terrain import DEFAULT_LEVEL_BIAS, render_terrain
 from .types import (
     DEFAULT_MAX_TRANSLUCENT,
     ChannelSpec,
@@ -44,7 +45,7 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
                  subarea: int = DEFAULT_SUBAREA, max_translucent: int = DEFAULT_MAX_TRANSLUCENT,
                  with_range: bool = True, times: StageTimes | None = None,
                  trace: dict | None = None, out: np.ndarray | None = None,
-                 stats: dict | None = None) -> Image:
+                 stats: dict | None = None, terrain_bias: int = DEFAULT_LEVEL_BIAS) -> Image:
     """Render one channel's view of the database from the eyepoint.
 
     Args:
@@ -64,7 +65,8 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
         out: (H, W, 3) float32 array the colours are written into (and returned as
             Image.rgb); a caller rendering frame after frame passes the same one.
         stats: if given, receives the visibility counters (SampleBuffer.stats), among them
-            "translucent_dropped".
+            "translucent_dropped", and the terrain stage's ("terrain_voxels", ...).
+        terrain_bias: terrain resolution level bias (terrain.py; 0: voxels 1 to 2 pixels wide).
 
     Raises:
         ValueError: a non-finite eyepoint field, an impossible channel, an unknown pattern,
@@ -82,6 +84,17 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
     clock = _Clock(times)
     with clock("view"):
         view = make_view(channel, eyepoint)
+    if renderer == "scanline" and (database.terrain is not None or database.haze is not None):
+        raise ValueError("renderer: the scanline renderer (a cross-check of the polygon "
+                         "visibility) draws no terrain or haze; use \"subarea\"")
+    # The terrain (and hazed sky) first: the polygons are depth-tested against it. A scene
+    # without terrain or haze skips the stage.
+    background = None
+    if database.terrain is not None or database.haze is not None:
+        with clock("terrain"):
+            background = render_terrain(database, view, offsets, level_bias=terrain_bias)
+    if stats is not None and background is not None:
+        stats.update(background.stats)
     with clock("cull"):
         draws = cull(database, view)
     with clock("transform"):
@@ -102,22 +115,23 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             with clock("visibility"):
                 return visible_pixels(screen, edges, bins, view, database, offsets,
                                       max_translucent, with_range=with_range, out=out,
-                                      stats=stats)
+                                      stats=stats, background=background)
         with clock("visibility"):
             buffer = resolve_visibility(screen, edges, bins, view, offsets, max_translucent,
-                                        with_range=with_range)
+                                        with_range=with_range, background=background)
     else:
         with clock("scanline"):
             buffer = scanline_visibility(screen, view, database, max_translucent=max_translucent)
             if not with_range:
                 buffer = dataclasses.replace(buffer, polygon_range=None)
     with clock("resolve"):
-        image = resolve(buffer, screen, view, database, filter, out=out)
+        image = resolve(buffer, screen, view, database, filter, out=out, background=background)
     if stats is not None:
         stats.update(buffer.stats)
     if trace is not None:
         trace["screen"] = screen
         trace["buffer"] = buffer
+        trace["background"] = background
     return image
 
 

@@ -7,9 +7,10 @@ from collections.abc import Callable
 import numpy as np
 
 from ._resolve_kernels import box_kernel, filter_kernel, shade_kernel
+from .haze import haze_params
 from .horizon import earth_dz_row, height_above_earth
 from .project import screen_mapping
-from .types import Database, Image, SampleBuffer, ScreenPolygons, View, rgb_array
+from .types import Background, Database, Image, SampleBuffer, ScreenPolygons, View, rgb_array
 
 
 def _box(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
@@ -53,7 +54,8 @@ def filter_weights(name: str, offsets: np.ndarray) -> np.ndarray:
 
 
 def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: Database,
-            filter: str = "box", out: np.ndarray | None = None) -> Image:
+            filter: str = "box", out: np.ndarray | None = None,
+            background: Background | None = None) -> Image:
     """Pixel colours from the sample store and the pixel's nearest range.
 
     A sample's colour is its translucent features, nearest first, each covering opacity of
@@ -65,6 +67,8 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
         view, database: for the sky, the earth plane and the sample rays.
         filter: name in FILTERS.
         out: optional (H, W, 3) float32 array to write the colours into.
+        background: the terrain stage's output the store's BACKGROUND_ID samples refer to;
+            with the database's haze, polygon samples are hazed by their range.
 
     Returns:
         Image with linear RGB and range in metres (+inf where every sample sees sky), the
@@ -79,9 +83,19 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
     sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
     tx = (np.arange(w)[:, None] + buffer.offsets[None, :, 0] - sx_off) / sx_scale
     ty = (np.arange(h)[:, None] + buffer.offsets[None, :, 1] - sy_off) / sy_scale
+    if background is None:
+        bg_rgb, bg_range = np.zeros((1, 1, 3), np.float32), np.zeros((1, 1), np.float32)
+    else:
+        bg_rgb, bg_range = background.rgb, background.range_m
+    sxs = np.arange(w)[:, None] + buffer.offsets[None, :, 0]
+    sys_ = np.arange(h)[:, None] + buffer.offsets[None, :, 1]
     args = (buffer.opaque, buffer.translucent, buffer.translucent_count, polygon_range,
             screen.colour, screen.opacity, database.sky_colour, database.earth_colour, tx, ty,
-            earth_dz_row(view), height_above_earth(database, view), want_range)
+            earth_dz_row(view), height_above_earth(database, view), want_range, bg_rgb, bg_range,
+            haze_params(database.haze, float(view.eye[2])), screen.inv_z, sxs, sys_,
+            background is not None and background.cloud is not None,
+            background.cloud if background is not None and background.cloud is not None
+            else np.zeros((1, 1, 5), np.float32))
     if filter == "box":
         box_kernel(*args, rgb, range_m)
     else:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -11,6 +12,8 @@ from typing import Any
 import numpy as np
 
 from .geometry import hpr_matrix
+from .clouds import Clouds, cloud_layer
+from .haze import Haze
 from .types import Database, FaceTable, Model
 
 FORMAT = "ig-scene/1"
@@ -24,6 +27,20 @@ class SceneError(ValueError):
 def bundled_scene_path() -> Path:
     """The airfield scene shipped with the package."""
     return Path(__file__).resolve().parent.parent / "data" / "airfield.json"
+
+
+def demo_scene_path() -> Path:
+    """The demo's scene: the bundled airfield on the bundled terrain, with haze (its terrain
+    is built from matplotlib's sample DEM on first use, channel_worker/terrain/bundled.py)."""
+    return Path(__file__).resolve().parent.parent / "data" / "airfield_terrain.json"
+
+
+#: Height over which haze thins by e when the scene does not say (metres): haze sits mostly
+#: in the lowest kilometre or two of the atmosphere.
+DEFAULT_HAZE_SCALE_HEIGHT_M = 1200.0
+
+#: Terrain databases a scene may name without a path ("database": "bundled:NAME").
+BUNDLED_TERRAIN = ("jacksboro",)
 
 
 def load_scene(path: str | Path) -> Database:
@@ -41,12 +58,16 @@ def load_scene(path: str | Path) -> Database:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise SceneError(f"{path}: line {exc.lineno} column {exc.colno}: invalid JSON: {exc.msg}") from exc
-    return parse_scene(doc, source=str(path))
+    return parse_scene(doc, source=str(path), base_dir=path.parent)
 
 
-def parse_scene(doc: Any, *, source: str = "<scene>") -> Database:
-    """Validate an already-decoded scene document; see load_scene."""
-    return _Parser(source).database(doc)
+def parse_scene(doc: Any, *, source: str = "<scene>", base_dir: str | Path | None = None) -> Database:
+    """Validate an already-decoded scene document; see load_scene.
+
+    Args:
+        base_dir: directory relative terrain paths are taken from (default: the current one).
+    """
+    return _Parser(source, Path(base_dir) if base_dir is not None else Path.cwd()).database(doc)
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
@@ -55,8 +76,9 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
 
 
 class _Parser:
-    def __init__(self, source: str) -> None:
+    def __init__(self, source: str, base_dir: Path) -> None:
         self.source = source
+        self.base_dir = base_dir
 
     def fail(self, where: str, message: str) -> SceneError:
         return SceneError(f"{self.source}: {where}: {message}")
@@ -93,7 +115,8 @@ class _Parser:
         return srgb_to_linear(srgb).astype(np.float32)
 
     def database(self, doc: Any) -> Database:
-        doc = self.obj(doc, "", {"format", "sky", "earth", "models", "instances"}, {"name", "lighting"})
+        doc = self.obj(doc, "", {"format", "sky", "earth", "models", "instances"},
+                       {"name", "lighting", "terrain", "haze", "clouds"})
         if doc["format"] != FORMAT:
             raise self.fail("format", f"{_show(doc['format'])} is not {FORMAT!r}")
         sky = self.obj(doc["sky"], "sky", {"colour"}, set())
@@ -145,7 +168,78 @@ class _Parser:
             ambient=ambient,
             faces=FaceTable.of(tuple(models)),
             source=self.source,
+            **self.terrain(doc.get("terrain")),
+            haze=self.haze(doc.get("haze")),
+            clouds=self.clouds(doc.get("clouds")),
         )
+
+    def clouds(self, doc: Any) -> Clouds | None:
+        """The optional "clouds" key: a procedural cloud layer (clouds.cloud_layer)."""
+        if doc is None:
+            return None
+        keys = {"extent_m", "cell_m", "base_m", "thickness_m", "cover", "extinction_per_m",
+                "colour"}
+        doc = self.obj(doc, "clouds", keys, {"seed"})
+        ext = doc["extent_m"]
+        if not isinstance(ext, list) or len(ext) != 4:
+            raise self.fail("clouds.extent_m", f"expected [x0, y0, x1, y1], got {_show(ext)}")
+        ext = [self.number(v, f"clouds.extent_m[{i}]") for i, v in enumerate(ext)]
+        if not (ext[0] < ext[2] and ext[1] < ext[3]):
+            raise self.fail("clouds.extent_m", f"{ext} is empty (need x0 < x1 and y0 < y1)")
+        cell = self.number(doc["cell_m"], "clouds.cell_m", 1.0)
+        if (ext[2] - ext[0]) / cell * (ext[3] - ext[1]) / cell > 4e6:
+            raise self.fail("clouds.cell_m", f"{cell} makes more than 4 million cells over "
+                            f"{ext}: the cloud database is meant to be coarse")
+        seed = doc.get("seed", 0)
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise self.fail("clouds.seed", f"expected a non-negative integer, got {_show(seed)}")
+        return cloud_layer(extent_m=tuple(ext), cell_m=cell,
+                           base_m=self.number(doc["base_m"], "clouds.base_m"),
+                           thickness_m=self.number(doc["thickness_m"], "clouds.thickness_m", 0.0),
+                           cover=self.number(doc["cover"], "clouds.cover", 0.0, 1.0),
+                           extinction_per_m=self.number(doc["extinction_per_m"],
+                                                        "clouds.extinction_per_m", 0.0),
+                           colour=self.colour(doc["colour"], "clouds.colour"), seed=seed)
+
+    def terrain(self, doc: Any) -> dict:
+        """Database fields for the optional "terrain" key (the voxel database, loaded)."""
+        if doc is None:
+            return {}
+        from channel_worker.terrain.database import TerrainError
+        from channel_worker.terrain.store import load_terrain
+
+        doc = self.obj(doc, "terrain", {"database"}, {"offset_m", "polygon_margin_m"})
+        name = doc["database"]
+        if not isinstance(name, str) or not name:
+            raise self.fail("terrain.database", f"expected a path or 'bundled:NAME', got {_show(name)}")
+        try:
+            if name.startswith("bundled:"):
+                if name[len("bundled:"):] not in BUNDLED_TERRAIN:
+                    raise self.fail("terrain.database", f"{name!r} is not a bundled terrain; known: "
+                                    + ", ".join(f"bundled:{n}" for n in BUNDLED_TERRAIN))
+                from channel_worker.terrain.bundled import load_bundled_terrain
+                db = load_bundled_terrain()
+            else:
+                db = load_terrain(self.base_dir / name)
+        except TerrainError as exc:
+            raise self.fail("terrain.database", str(exc)) from exc
+        offset = self.vec3(doc.get("offset_m", [0.0, 0.0, 0.0]), "terrain.offset_m")
+        margin = self.number(doc.get("polygon_margin_m", 1.0), "terrain.polygon_margin_m", 0.0, 100.0)
+        db = dataclasses.replace(db, origin=np.asarray(db.origin, np.float64) + offset)
+        return {"terrain": db, "terrain_margin_m": margin}
+
+    def haze(self, doc: Any) -> Haze | None:
+        """The optional "haze" key."""
+        if doc is None:
+            return None
+        doc = self.obj(doc, "haze", {"visibility_m", "colour"}, {"scale_height_m", "base_height_m"})
+        vis = self.number(doc["visibility_m"], "haze.visibility_m", 1e-3)
+        # null: no thinning with height (homogeneous haze).
+        scale = doc.get("scale_height_m", DEFAULT_HAZE_SCALE_HEIGHT_M)
+        scale = math.inf if scale is None else self.number(scale, "haze.scale_height_m", 1.0)
+        return Haze(visibility_m=vis, scale_height_m=scale,
+                    base_height_m=self.number(doc.get("base_height_m", 0.0), "haze.base_height_m"),
+                    colour=self.colour(doc["colour"], "haze.colour"))
 
     def model(self, name: str, doc: Any) -> Model:
         where = f"models.{name}"

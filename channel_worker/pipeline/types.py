@@ -10,12 +10,16 @@ Frames (see docs/conventions.md):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 #: Feature identity stored for samples that no polygon covers.
 SKY_ID = -1
 EARTH_ID = -2
+#: A sample that sees the frame's Background (terrain, or the sky and earth plane as the terrain
+#: stage painted them with haze): its colour is Background.rgb of that sample.
+BACKGROUND_ID = -3
 
 #: Sub-pixel precision of the rasterizer: screen coordinates are snapped to 1/SUBPIXEL pixel
 #: and edge functions are evaluated exactly in int64 (watertight, see raster.py).
@@ -222,6 +226,31 @@ class SampleBuffer:
 
 
 @dataclass(frozen=True)
+class Background:
+    """What every sample sees behind the polygons, when the scene has terrain or haze.
+
+    Attributes:
+        rgb: (H, W, 3) float32 linear colour of the pixel's background: terrain over the sky
+            or the earth plane, all with haze.
+        inv_z: (H, W, S) float32 1/z (eye depth, metres) a polygon must exceed to be seen in
+            front of the terrain (the terrain pushed back by the scene's polygon margin); 0
+            where the sample sees sky or the earth plane, which never hide a polygon.
+        range_m: (H, W) float32 nearest range of the background among the pixel's samples,
+            metres (+inf for sky).
+        stats: counters of the terrain stage ("terrain_voxels": voxels visited, ...).
+        cloud: (H, W, 5) float32 the pixel's cloud (premultiplied linear RGB, opacity, range
+            where its ray enters cloud, metres), already laid over rgb; polygons beyond the
+            entry range are seen through it. None when the scene has no clouds.
+    """
+
+    rgb: np.ndarray
+    inv_z: np.ndarray
+    range_m: np.ndarray
+    stats: dict[str, int] = field(default_factory=dict)
+    cloud: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
 class Image:
     """One channel's resolved output.
 
@@ -347,6 +376,11 @@ class Database:
         ambient: share of a face's colour lit regardless of the sun.
         faces: all models' faces in one flat table (FaceTable.of(models)).
         source: where the database was loaded from (for messages).
+        terrain: the voxel terrain (channel_worker.terrain.database.TerrainDatabase) or None.
+        terrain_margin_m: a polygon within this height above or below the terrain surface is
+            drawn in front of it (a runway on its pad), metres.
+        haze: channel_worker.pipeline.haze.Haze or None.
+        clouds: channel_worker.pipeline.clouds.Clouds or None.
     """
 
     models: tuple[Model, ...]
@@ -362,6 +396,10 @@ class Database:
     ambient: float
     faces: FaceTable
     source: str = ""
+    terrain: Any = None
+    terrain_margin_m: float = 1.0
+    haze: Any = None
+    clouds: Any = None
 
     @property
     def feature_count(self) -> int:

@@ -13,6 +13,11 @@ Depth is compared on 1/z evaluated exactly from each feature's plane. Coplanar f
 the scene declares to lie on one another share a plane bit for bit (scene "on"), so they tie
 exactly at every sample and the declared layer decides, at any range, with no depth offset.
 
+With terrain (a Background from the terrain stage) every sample starts out holding the
+terrain as its nearest opaque feature, at the terrain's depth: polygons behind a hill are
+hidden like polygons behind polygons (and the sub-area lists stop early behind it), and what
+no polygon covers shows the background.
+
 The store holds identities; the resolve stage turns them into colours.
 """
 
@@ -24,11 +29,13 @@ import numpy as np
 from ._visibility_kernels import coverage_kernel, visibility_kernel
 from .binning import DEFAULT_SUBAREA, Bins, bin_features
 from .edges import Edges, setup_edges
+from .haze import haze_params
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
 from .types import (
     DEFAULT_MAX_TRANSLUCENT,
     SUBPIXEL,
+    Background,
     Database,
     Image,
     SampleBuffer,
@@ -41,7 +48,8 @@ from .types import (
 
 def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
                        offsets: np.ndarray, max_translucent: int = DEFAULT_MAX_TRANSLUCENT, *,
-                       with_range: bool = True) -> SampleBuffer:
+                       with_range: bool = True,
+                       background: Background | None = None) -> SampleBuffer:
     """The sample store of one frame: nearest opaque and nearer translucent features per sample.
 
     Args:
@@ -53,6 +61,8 @@ def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: V
         max_translucent: K, translucent features kept per sample (1..15).
         with_range: compute polygon_range (else it is None: a frame that only needs colour
             pays nothing for ranges).
+        background: the terrain stage's output, or None (samples no polygon covers then see
+            the sky or the earth plane); samples showing it hold BACKGROUND_ID.
     """
     k = check_max_translucent(max_translucent)
     h, w, s = view.height, view.width, offsets.shape[0]
@@ -63,7 +73,7 @@ def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: V
     polygon_range = np.empty((h, w) if with_range else (1, 1), np.float32)
     opaque = np.empty((h, w, s), np.int32)
     stats = _run(screen, edges, bins, view, offsets, k, any_translucent, with_range,
-                 opaque, trans, count, polygon_range, None)
+                 opaque, trans, count, polygon_range, None, background, None)
     return SampleBuffer(offsets=offsets, opaque=opaque, translucent=trans, translucent_count=count,
                         polygon_range=polygon_range if with_range else None, stats=stats)
 
@@ -71,7 +81,8 @@ def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: V
 def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View, database: Database,
                    offsets: np.ndarray, max_translucent: int = DEFAULT_MAX_TRANSLUCENT, *,
                    with_range: bool = True, stats: dict | None = None,
-                   out: np.ndarray | None = None) -> Image:
+                   out: np.ndarray | None = None,
+                   background: Background | None = None) -> Image:
     """The same visibility with the box filter applied inside each sub-area (seed 000: "an
     output for each pixel within a sub-area"): no sample store is written, which is what makes
     the default quality fast. Identical to resolve(resolve_visibility(...), filter="box") up to
@@ -82,6 +93,8 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
         stats: if given, receives the visibility counters.
         out: (H, W, 3) float32 array to write the colours into (a caller rendering frame after
             frame keeps one, so the pages are not faulted in anew every frame).
+        background: the terrain stage's output, or None; with the database's haze, polygons
+            are hazed per sample.
     """
     k = check_max_translucent(max_translucent)
     h, w = view.height, view.width
@@ -89,14 +102,15 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
     range_m = np.empty((h, w) if with_range else (1, 1), np.float32)
     counters = _run(screen, edges, bins, view, offsets, k, bool((screen.opacity < 1.0).any()),
                     with_range, np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),
-                    np.empty((1, 1, 1), np.uint8), range_m, (database, rgb))
+                    np.empty((1, 1, 1), np.uint8), range_m, (database, rgb), background,
+                    database.haze)
     if stats is not None:
         stats.update(counters)
     return Image(rgb=rgb, range_m=range_m if with_range else None)
 
 
 def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opaque, trans, count,
-         polygon_range, fused) -> dict[str, int]:
+         polygon_range, fused, background, haze) -> dict[str, int]:
     n_tiles = bins.tiles_x * bins.tiles_y
     dropped = np.zeros(n_tiles, np.int64)
     stopped = np.zeros(n_tiles, np.int64)
@@ -112,7 +126,8 @@ def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opa
     previous = numba.set_parallel_chunksize(1)
     try:
         _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opaque, trans, count,
-                polygon_range, dropped, stopped, fused is not None, sky, earth, height, rgb)
+                polygon_range, dropped, stopped, fused is not None, sky, earth, height, rgb,
+                background, haze_params(haze, float(view.eye[2])))
     finally:
         numba.set_parallel_chunksize(previous)
     stats = dict(bins.stats)
@@ -122,7 +137,17 @@ def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opa
 
 
 def _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opaque, trans, count,
-            polygon_range, dropped, stopped, fused, sky, earth, height, rgb) -> None:
+            polygon_range, dropped, stopped, fused, sky, earth, height, rgb, background,
+            haze) -> None:
+    if background is None:
+        bg = (False, np.zeros((1, 1, 3), np.float32), np.zeros((1, 1, 1), np.float32),
+              np.zeros((1, 1), np.float32))
+    else:
+        bg = (True, background.rgb, background.inv_z, background.range_m)
+    if background is None or background.cloud is None:
+        cloud = (False, np.zeros((1, 1, 5), np.float32))
+    else:
+        cloud = (True, background.cloud)
     visibility_kernel(bins.start, bins.polygon, bins.full, bins.size, bins.tiles_x, view.width,
                       view.height, screen.start, edges.ia, edges.ib, edges.ic, edges.bias,
                       edges.x0, edges.x1, edges.y0, edges.y1, edges.nearest_inv_z,
@@ -130,7 +155,8 @@ def _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opa
                       _offsets_fixed(offsets), SUBPIXEL, np.array(earth_dz_screen(view)),
                       np.array(screen_mapping(view)), any_translucent, with_range,
                       opaque, trans, count, polygon_range, dropped, stopped,
-                      fused, screen.colour, sky, earth, earth_dz_row(view), height, rgb)
+                      fused, screen.colour, sky, earth, earth_dz_row(view), height, rgb, *bg, haze,
+                      *cloud)
 
 
 def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np.ndarray, *,

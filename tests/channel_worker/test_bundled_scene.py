@@ -12,7 +12,7 @@ import pytest
 from channel_worker.data import build_airfield
 from channel_worker.pipeline.geometry import hpr_matrix
 from channel_worker.pipeline.render import render_frame
-from channel_worker.pipeline.scene import bundled_scene_path, load_scene
+from channel_worker.pipeline.scene import bundled_scene_path, demo_scene_path, load_scene
 from channel_worker.pipeline.types import ChannelSpec, Eyepoint
 from host_sim.flight import bundled_flight
 
@@ -39,19 +39,28 @@ def _newell(points: np.ndarray) -> np.ndarray:
 
 def test_checked_in_json_is_what_the_generator_writes():
     assert build_airfield.OUTPUT == bundled_scene_path()
+    assert build_airfield.TERRAIN_OUTPUT == demo_scene_path()
     expected = build_airfield.render_json(build_airfield.build_scene())
     assert bundled_scene_path().read_text(encoding="utf-8") == expected, (
         "airfield.json is stale: run python -m channel_worker.data.build_airfield")
+    expected = build_airfield.render_json(build_airfield.build_terrain_scene())
+    assert demo_scene_path().read_text(encoding="utf-8") == expected, (
+        "airfield_terrain.json is stale: run python -m channel_worker.data.build_airfield")
 
 
 def test_generator_check_mode(tmp_path, capsys):
     out = tmp_path / "airfield.json"
-    assert build_airfield.main(["--check", "--output", str(out)]) == 1  # missing
-    assert build_airfield.main(["--output", str(out)]) == 0
-    assert build_airfield.main(["--check", "--output", str(out)]) == 0
-    out.write_text(out.read_text() + " ")
-    assert build_airfield.main(["--check", "--output", str(out)]) == 1
-    assert "out of date" in capsys.readouterr().err
+    out_t = tmp_path / "airfield_terrain.json"
+    files = ["--output", str(out), "--terrain-output", str(out_t)]
+    assert build_airfield.main(["--check", *files]) == 1  # missing
+    assert build_airfield.main(files) == 0
+    assert build_airfield.main(["--check", *files]) == 0
+    for path in (out, out_t):
+        text = path.read_text()
+        path.write_text(text + " ")
+        assert build_airfield.main(["--check", *files]) == 1
+        assert "out of date" in capsys.readouterr().err
+        path.write_text(text)
 
 
 # --- (b) every face planar, convex, facing outwards ----------------------------------------------

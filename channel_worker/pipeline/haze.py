@@ -1,0 +1,90 @@
+"""Haze of seed 002: the share of haze colour in a pixel as a function of range and pitch.
+
+Seed 002 gives ``Iout = Iorig (1 - H) + I_H H`` with ``H = f(R_S, Vis, theta)`` (slant range,
+half-haze distance, pitch of the pixel's ray) limited to [0, 1]. The function used here is the
+one of an exponential atmosphere: extinction ``beta(z) = ln 2 / Vis * exp(-(z - z0) / Hs)``
+(Vis is the distance over which a horizontal path at height z0 is half haze; Hs the scale
+height), integrated along the ray from the eye (height z_e) with elevation sine s over range R:
+
+    tau = beta(z_e) * R * g(R s / Hs),    g(x) = (1 - exp(-x)) / x,    H = 1 - exp(-tau)
+
+so a ray looking down into denser air is hazier than a level one of the same range, the sky
+overhead (R -> infinity, s > 0: tau = beta(z_e) Hs / s) keeps most of its colour and the sky at
+the horizon turns to haze colour. g is evaluated by its series near x = 0 (no 0/0 for level
+rays), and Hs = infinity is homogeneous haze (g = 1). A scene without haze skips all of this.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+#: Beyond this optical depth a surface is 99.9 % haze: the terrain scan stops there.
+OPAQUE_TAU = 7.0
+
+
+@dataclass(frozen=True)
+class Haze:
+    """Scene haze (docs/scene-format.md "haze").
+
+    Attributes:
+        visibility_m: half-haze distance of a horizontal path at base_height_m, metres (> 0).
+        scale_height_m: height over which the haze thins by e, metres (> 0; inf = homogeneous).
+        base_height_m: world z where visibility_m holds.
+        colour: (3,) float32 linear RGB of the haze.
+    """
+
+    visibility_m: float
+    scale_height_m: float
+    base_height_m: float
+    colour: np.ndarray
+
+
+def haze_params(haze: Haze | None, eye_z: float) -> np.ndarray:
+    """(7,) float64 for the kernels: [on, beta at the eye, 1 / Hs, r, g, b, eye z].
+
+    All zero when there is no haze (the kernels test params[0] once).
+    """
+    out = np.zeros(7, np.float64)
+    if haze is None:
+        return out
+    inv_hs = 0.0 if math.isinf(haze.scale_height_m) else 1.0 / haze.scale_height_m
+    # Guard: the scene parser requires visibility_m > 0 and scale_height_m > 0.
+    beta0 = math.log(2.0) / haze.visibility_m
+    # Clamp the exponent: an eye far below the base height would overflow to inf.
+    beta_eye = beta0 * math.exp(min(-(eye_z - haze.base_height_m) * inv_hs, 700.0))
+    out[:] = (1.0, beta_eye, inv_hs, haze.colour[0], haze.colour[1], haze.colour[2], eye_z)
+    return out
+
+
+def beta_at(haze: Haze, z: float) -> float:
+    """Extinction coefficient at world height z, 1/metres."""
+    inv_hs = 0.0 if math.isinf(haze.scale_height_m) else 1.0 / haze.scale_height_m
+    return math.log(2.0) / haze.visibility_m * math.exp(min(-(z - haze.base_height_m) * inv_hs, 700.0))
+
+
+@njit(cache=True, inline="always")
+def haze_amount(params, range_m, sin_elev):
+    """H in [0, 1] for a surface at range_m (metres, may be inf for the sky) along a ray whose
+    elevation sine is sin_elev."""
+    beta = params[1]
+    x = range_m * sin_elev * params[2]
+    if math.isinf(range_m):
+        if sin_elev <= 0.0 or params[2] == 0.0:
+            return 1.0  # a level or homogeneous path to infinity is all haze
+        tau = beta / (sin_elev * params[2])  # guard: both factors > 0 here
+    elif abs(x) < 1e-4:
+        tau = beta * range_m * (1.0 - 0.5 * x + x * x / 6.0)
+    else:
+        # Guard: |x| >= 1e-4 so the division is safe; exp(-x) for x < -700 overflows to inf
+        # and tau to inf, which exp(-tau) turns into H = 1 as it should.
+        tau = beta * range_m * (-math.expm1(-x)) / x
+    return -math.expm1(-tau)
+
+
+def haze_amount_py(haze: Haze, eye_z: float, range_m: float, sin_elev: float) -> float:
+    """haze_amount for one ray from Python (tests, reports)."""
+    return float(haze_amount(haze_params(haze, eye_z), float(range_m), float(sin_elev)))
