@@ -47,6 +47,9 @@ class WorkerCounters:
     submit_failures: int = 0
     ack_failures: int = 0
     translucent_dropped: int = 0
+    terrain_voxels_last_frame: int = 0
+    terrain_voxels_total: int = 0
+    terrain_eye_clamped: int = 0
     last_frame_number: int = 0
     run_id: str = ""
     last_error: str = ""
@@ -244,6 +247,9 @@ class ChannelWorker:
                                  out=self._rgb, stats=stats, **self.options)
             with self._lock:
                 self.counters.translucent_dropped += stats.get("translucent_dropped", 0)
+                self.counters.terrain_voxels_last_frame = stats.get("terrain_voxels", 0)
+                self.counters.terrain_voxels_total += stats.get("terrain_voxels", 0)
+                self.counters.terrain_eye_clamped += stats.get("terrain_eye_clamped", 0)
         except ValueError as exc:
             # The message names the field and value, e.g. "eyepoint.position[2]: nan is not finite".
             error = f"frame {number} refused: {exc}"

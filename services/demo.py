@@ -201,13 +201,15 @@ def run(args: argparse.Namespace) -> int:
     from channel_worker.pipeline.scene import SceneError, demo_scene_path, load_scene
 
     scene_path = args.scene or str(demo_scene_path())
-    try:
-        # Validates the scene before anything starts, and builds the bundled terrain once here
-        # (a few seconds on first use) instead of in every worker at once.
-        load_scene(scene_path)
-    except SceneError as exc:
-        error("demo", exc)
-        return EXIT_BAD_INPUT
+    if not args.scene:
+        # Build the bundled terrain once here (a few seconds on first use) instead of in every
+        # worker at once. A scene of the user's is checked by the workers, whose errors end
+        # the demo with their message.
+        try:
+            load_scene(scene_path)
+        except SceneError as exc:
+            error("demo", exc)
+            return EXIT_FAILED
     if args.width or args.height:
         first = rig.channels[0].spec
         rig = rig.with_size(args.width or first.width, args.height or first.height)

@@ -466,10 +466,11 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
             base = ((y - ty0) * tw + (x - tx0)) * s_count
-            if not want_range and not by_range:
-                # Most pixels, even in a busy sub-area, see one thing with every sample.
+            if not want_range:
+                # Most pixels, even in a busy sub-area, see one thing with every sample (with
+                # haze or clouds: one polygon, seen through the air at the pixel's centre).
                 f0 = o_id[base]
-                same = f0 >= 0 or background != 0
+                same = f0 >= 0 or (background != 0 and not by_range)
                 for s in range(1, s_count):
                     if o_id[base + s] != f0:
                         same = False
@@ -480,7 +481,21 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
                             same = False
                             break
                 if same:
-                    if f0 >= 0:
+                    if f0 >= 0 and by_range:
+                        iz = 0.0
+                        for s in range(s_count):
+                            iz += o_iz[base + s]
+                        rx = ((x + 0.5) - sx_off) / sx_scale
+                        ry = ((y + 0.5) - sy_off) / sy_scale
+                        ray = math.sqrt(rx * rx + ry * ry + 1.0)
+                        # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
+                        cr, cg, cb = through_air(haze, cloud_on, cloud, y, x, ray * s_count / iz,
+                                                 (dz_row[0] * rx + dz_row[1] * ry + dz_row[2]) / ray,
+                                                 colour[f0, 0], colour[f0, 1], colour[f0, 2])
+                        out_rgb[y, x, 0] = cr
+                        out_rgb[y, x, 1] = cg
+                        out_rgb[y, x, 2] = cb
+                    elif f0 >= 0:
                         out_rgb[y, x, 0] = colour[f0, 0]
                         out_rgb[y, x, 1] = colour[f0, 1]
                         out_rgb[y, x, 2] = colour[f0, 2]

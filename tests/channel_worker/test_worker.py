@@ -123,3 +123,28 @@ def test_a_refused_subscription_ends_the_worker_with_the_reason(make_scene, box_
     finally:
         stop.set()
         server.stop(0).wait()
+
+
+def test_terrain_voxels_are_reported_per_frame_and_in_total(make_scene, box_model_factory):
+    import dataclasses
+
+    from channel_worker.testing.terrain_reference import single_level_database
+
+    heights = np.zeros((9, 9))
+    heights[4, 4] = 30.0  # a hill ahead of the eye
+    colours = np.full((9, 9, 3), 120, np.uint8)
+    db = make_scene({"b": box_model_factory(1, 1, 1)}, [{"model": "b", "position": [0, 0, 0]}])
+    db = dataclasses.replace(db, terrain=single_level_database(heights, colours, 50.0, (-200.0, -950.0, 0.0)))
+    w = ChannelWorker(db, ChannelSpec.symmetric("centre", 16, 12, 60.0), host_address="127.0.0.1:1",
+                      compositor_address="127.0.0.1:1", samples=1)
+    w.host_stub = w.compositor_stub = FakeStub()
+    w._handle(frame(0))
+    first = w.counters.terrain_voxels_last_frame
+    assert first > 0
+    w._handle(frame(1, x=1.0))
+    assert w.counters.terrain_voxels_total == first + w.counters.terrain_voxels_last_frame
+    assert w.counters.terrain_eye_clamped == 0
+    w._handle(frame(2))  # eye 3 m up at y = -900 is inside the database, above the flat ground
+    status = w.status()
+    assert status.terrain_voxels_last_frame == w.counters.terrain_voxels_last_frame
+    assert status.terrain_voxels_total == w.counters.terrain_voxels_total

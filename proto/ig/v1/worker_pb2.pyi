@@ -9,7 +9,7 @@ class GetWorkerStatusRequest(_message.Message):
     def __init__(self) -> None: ...
 
 class GetWorkerStatusResponse(_message.Message):
-    __slots__ = ("channel_name", "subscribed", "run_id", "last_frame_number", "frames_handled", "frames_rendered", "frames_skipped", "frames_refused", "submit_failures", "ack_failures", "last_error", "translucent_dropped")
+    __slots__ = ("channel_name", "subscribed", "run_id", "last_frame_number", "frames_handled", "frames_rendered", "frames_skipped", "frames_refused", "submit_failures", "ack_failures", "last_error", "translucent_dropped", "terrain_voxels_last_frame", "terrain_voxels_total", "terrain_eye_clamped")
     CHANNEL_NAME_FIELD_NUMBER: _ClassVar[int]
     SUBSCRIBED_FIELD_NUMBER: _ClassVar[int]
     RUN_ID_FIELD_NUMBER: _ClassVar[int]
@@ -22,6 +22,9 @@ class GetWorkerStatusResponse(_message.Message):
     ACK_FAILURES_FIELD_NUMBER: _ClassVar[int]
     LAST_ERROR_FIELD_NUMBER: _ClassVar[int]
     TRANSLUCENT_DROPPED_FIELD_NUMBER: _ClassVar[int]
+    TERRAIN_VOXELS_LAST_FRAME_FIELD_NUMBER: _ClassVar[int]
+    TERRAIN_VOXELS_TOTAL_FIELD_NUMBER: _ClassVar[int]
+    TERRAIN_EYE_CLAMPED_FIELD_NUMBER: _ClassVar[int]
     channel_name: str
     subscribed: bool
     run_id: str
@@ -34,4 +37,7 @@ class GetWorkerStatusResponse(_message.Message):
     ack_failures: int
     last_error: str
     translucent_dropped: int
-    def __init__(self, channel_name: _Optional[str] = ..., subscribed: _Optional[bool] = ..., run_id: _Optional[str] = ..., last_frame_number: _Optional[int] = ..., frames_handled: _Optional[int] = ..., frames_rendered: _Optional[int] = ..., frames_skipped: _Optional[int] = ..., frames_refused: _Optional[int] = ..., submit_failures: _Optional[int] = ..., ack_failures: _Optional[int] = ..., last_error: _Optional[str] = ..., translucent_dropped: _Optional[int] = ...) -> None: ...
+    terrain_voxels_last_frame: int
+    terrain_voxels_total: int
+    terrain_eye_clamped: int
+    def __init__(self, channel_name: _Optional[str] = ..., subscribed: _Optional[bool] = ..., run_id: _Optional[str] = ..., last_frame_number: _Optional[int] = ..., frames_handled: _Optional[int] = ..., frames_rendered: _Optional[int] = ..., frames_skipped: _Optional[int] = ..., frames_refused: _Optional[int] = ..., submit_failures: _Optional[int] = ..., ack_failures: _Optional[int] = ..., last_error: _Optional[str] = ..., translucent_dropped: _Optional[int] = ..., terrain_voxels_last_frame: _Optional[int] = ..., terrain_voxels_total: _Optional[int] = ..., terrain_eye_clamped: _Optional[int] = ...) -> None: ...
