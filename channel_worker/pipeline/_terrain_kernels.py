@@ -17,8 +17,9 @@ PRE_R, PRE_G, PRE_B, PRE_A, PRE_IR = 0, 1, 2, 3, 4
 PRE_CHANNELS = 5
 
 # Column state (one small array per column, so the helpers can update it in place).
-_ROW, _AR, _AG, _AB, _AW, _IR, _TMAX = 0, 1, 2, 3, 4, 5, 6
-_STATE = 7
+_ROW, _AR, _AG, _AB, _AW, _IR, _TMAX, _IRF = 0, 1, 2, 3, 4, 5, 6, 7
+_R1, _Z1, _R2, _Z2 = 8, 9, 10, 11  # the last segment emitted
+_STATE = 12
 
 #: Depth of the skirt down the database's edge (metres): deep enough to reach below any
 #: horizon the scan starts from.
@@ -38,9 +39,11 @@ def _finish_row(pre, j, st, theta0, dtheta, haze):
     g = st[_AG]
     b = st[_AB]
     ir = st[_IR]
-    if haze[0] != 0.0 and w > 0.0 and ir > 0.0:
+    if haze[0] != 0.0 and w > 0.0:
         centre = theta0 + (row + 0.5) * dtheta
-        hz = haze_amount(haze, 1.0 / ir, math.sin(centre))  # guard: ir > 0
+        # The surface's range at the row's centre, or (a row its surface leaves below the
+        # centre) that of the surface's far end. Guard: _IRF > 0 once anything was emitted.
+        hz = haze_amount(haze, 1.0 / (ir if ir > 0.0 else st[_IRF]), math.sin(centre))
         # Premultiplied: the haze covers the share w of the texel the terrain covers.
         r = r * (1.0 - hz) + haze[3] * hz * w
         g = g * (1.0 - hz) + haze[4] * hz * w
@@ -56,61 +59,109 @@ def _finish_row(pre, j, st, theta0, dtheta, haze):
     st[_AB] = 0.0
     st[_AW] = 0.0
     st[_IR] = 0.0
+    st[_IRF] = 0.0
 
 
 @njit(cache=True, inline="always")
-def _inverse_range_at(ct, st, r1, z1, r2, z2):
-    """1 / distance from the eye to where the ray at elevation theta (its cosine and sine)
-    meets the segment (r1, z1) -> (r2, z2) (ground range, height relative to the eye, m)."""
+def _param_at(ct, st, r1, z1, r2, z2):
+    """Where (0..1) along the segment (r1, z1) -> (r2, z2) (ground range, height relative to
+    the eye, metres) the ray at elevation theta (its cosine and sine) meets it."""
     dr = r2 - r1
     dz = z2 - z1
     den = dr * st - dz * ct
     # Guard: a ray parallel to the segment (den ~ 0) meets it along its length; its middle
     # stands for it.
     t = (z1 * ct - r1 * st) / den if abs(den) > 1e-12 * (abs(dr) + abs(dz)) else 0.5
-    t = min(max(t, 0.0), 1.0)
-    rr = r1 + t * dr
-    zz = z1 + t * dz
+    return min(max(t, 0.0), 1.0)
+
+
+@njit(cache=True, inline="always")
+def _inverse_range_at(ct, st, r1, z1, r2, z2):
+    """1 / distance from the eye to where the ray at elevation theta (its cosine and sine)
+    meets the segment (r1, z1) -> (r2, z2)."""
+    t = _param_at(ct, st, r1, z1, r2, z2)
+    rr = r1 + t * (r2 - r1)
+    zz = z1 + t * (z2 - z1)
     # Guard: the eye is kept above the surface (terrain.py), so the distance is > 0.
     return 1.0 / max(math.sqrt(rr * rr + zz * zz), 1e-6)
 
 
+@njit(cache=True, inline="always")
+def _inverse_range_on_line(ct, st, r1, z1, r2, z2):
+    """Signed 1 / distance along the ray at elevation theta (cosine, sine) to the line through
+    the segment (r1, z1) -> (r2, z2): (n . u) / (n . p1) with n normal to the line and u the
+    ray's direction; negative if the ray meets the line behind the eye. The far end's inverse
+    range where the line passes through the eye (n . p1 ~ 0)."""
+    nr = -(z2 - z1)
+    nz = r2 - r1
+    c = nr * r1 + nz * z1
+    if abs(c) <= 1e-9 * (abs(nr) + abs(nz)) * (abs(r1) + abs(z1) + 1.0):
+        return 1.0 / max(math.sqrt(r2 * r2 + z2 * z2), 1e-6)
+    return (nr * ct + nz * st) / c  # guard: |c| is not ~0
+
+
+@njit(cache=True, inline="always")
+def _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, t, cr, cg, cb):
+    """Colour at parameter t of a segment: the voxel's bilinear corner colours at the local
+    point (u0, v0) + t ((u1, v1) - (u0, v0)), or the constant (cr, cg, cb) if page < 0."""
+    if page < 0:
+        return cr, cg, cb
+    u = u0 + t * (u1 - u0)
+    v = v0 + t * (v1 - v0)
+    return (_corner_rgb(rgb_pages, lut, page, vy, vx, u, v, 0),
+            _corner_rgb(rgb_pages, lut, page, vy, vx, u, v, 1),
+            _corner_rgb(rgb_pages, lut, page, vy, vx, u, v, 2))
+
+
 @njit(cache=True)
-def _emit(pre, j, st, nrows, theta0, dtheta, row_cs, haze, a, b, ca_r, ca_g, ca_b, cb_r, cb_g,
-          cb_b, r1, z1, r2, z2):
+def _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, ta, tb, r1, z1, r2, z2,
+          rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, cr, cg, cb):
     """Integrate the visible angular interval [a, b] of one surface segment into the rows.
 
-    The colour varies linearly in angle from ca (at a) to cb (at b); each row receives the
-    share of its height the interval covers (seed 002's colour integration by the fraction of
-    the pixel a voxel covers: no jagged silhouettes). The segment's end points (r, z relative
+    Each row receives the share of its height the interval covers (seed 002's colour
+    integration by the fraction of the pixel a voxel covers: no jagged silhouettes), with the
+    mean of the surface colour at the ends of its part: the colour is the voxel's bilinear
+    colour where the row's boundary ray meets the segment (ta, tb: the segment parameters at
+    a and b; top_cs: cosine and sine of each row's top boundary), so a voxel spanning many
+    rows is coloured like the surface, not stretched. The segment's end points (r, z relative
     to the eye) give the exact range at a row's centre (row_cs: cosine and sine of each row's
-    centre elevation).
+    centre elevation). page < 0: a wall or pattern of constant colour (cr, cg, cb).
     """
-    span = b - a
     row = int(st[_ROW])
+    st[_R1] = r1
+    st[_Z1] = z1
+    st[_R2] = r2
+    st[_Z2] = z2
+    ca_r, ca_g, ca_b = _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, ta, cr, cg, cb)
     while a < b and row < nrows:
         top = theta0 + (row + 1) * dtheta
-        e = min(b, top)
-        f = (e - a) / span  # guard: span > 0 (a < b on entry; a only grows towards b)
-        ce_r = ca_r + (cb_r - ca_r) * f
-        ce_g = ca_g + (cb_g - ca_g) * f
-        ce_b = ca_b + (cb_b - ca_b) * f
+        if b <= top:
+            e = b
+            te = tb
+        else:
+            e = top
+            te = _param_at(top_cs[row, 0], top_cs[row, 1], r1, z1, r2, z2)
+        ce_r, ce_g, ce_b = _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, te, cr, cg, cb)
         w = (e - a) / dtheta
         st[_AR] += w * 0.5 * (ca_r + ce_r)
         st[_AG] += w * 0.5 * (ca_g + ce_g)
         st[_AB] += w * 0.5 * (ca_b + ce_b)
         st[_AW] += w
         centre = top - 0.5 * dtheta
+        st[_IRF] = 1.0 / max(math.sqrt(r2 * r2 + z2 * z2), 1e-6)
         if a <= centre < e:
             st[_IR] = _inverse_range_at(row_cs[row, 0], row_cs[row, 1], r1, z1, r2, z2)
         elif st[_IR] == 0.0 or centre >= e:
-            # Until the centre ray is reached: the segment's far end stands for the row.
-            st[_IR] = 1.0 / max(math.sqrt(r2 * r2 + z2 * z2), 1e-6)
+            # The centre ray is not (yet) on the surface: the signed inverse range along it
+            # to the segment's line continued stands for the row (negative where it would
+            # meet the line behind the eye). For planar ground that is linear in the
+            # elevation's sine, so the warp interpolates a partly covered row at an edge or
+            # crest as well as whole ones.
+            st[_IR] = _inverse_range_on_line(row_cs[row, 0], row_cs[row, 1], r1, z1, r2, z2)
         if e >= top:
             _finish_row(pre, j, st, theta0, dtheta, haze)
             row += 1
         # The rest of the interval starts at e with the colour there.
-        span = b - e
         a = e
         ca_r = ce_r
         ca_g = ce_g
@@ -170,6 +221,13 @@ def _corner_rgb(rgb_pages, lut, page, vy, vx, u, v, ch):
 
 
 @njit(cache=True, inline="always")
+def _page_key(qx, qy, d, log2_page, pages_x):
+    """Identity of the page of a level (voxel width d, pages_x pages per row) holding ground
+    point (qx, qy) (database-relative metres; points off the grid give off-grid keys)."""
+    return (int(math.floor(qy / d)) >> log2_page) * pages_x + (int(math.floor(qx / d)) >> log2_page)
+
+
+@njit(cache=True, inline="always")
 def _page_of(page_table, table_offset, pages_x, pages_y, log2_page, level, ix, iy):
     px = ix >> log2_page
     py = iy >> log2_page
@@ -182,7 +240,7 @@ def _page_of(page_table, table_offset, pages_x, pages_y, log2_page, level, ix, i
 def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x, pages_y,
                 log2_page, level_nx, level_ny, spacing, extent_x, extent_y, z_max, pat_top,
                 pat_rgb, pat_bands, lut, eye, phi_lo, dphi, ncols, theta0, dtheta, nrows,
-                r_switch, r_far, haze, row_cs, out_pre, out_visits):
+                r_switch, r_far, haze, row_cs, top_cs, out_pre, out_visits):
     """One radial scan across the ground grid per pre-image column (seed 002).
 
     Column j is the vertical half-plane through the eye at azimuth phi_lo + (j + 1/2) dphi
@@ -215,17 +273,24 @@ def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x
             j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x, pages_y,
             log2_page, level_nx, level_ny, levels, spacing, extent_x, extent_y, z_max, pat_top,
             pat_rgb, pat_bands, lut, ex, ey, ez, phi_lo, dphi, theta0, dtheta, nrows, r_switch,
-            r_far, haze, row_cs, out_pre)
+            r_far, haze, row_cs, top_cs, out_pre)
         # The row the scan stopped in holds what covered it so far (a silhouette).
         if int(st[_ROW]) < nrows and st[_AW] > 0.0:
             _finish_row(out_pre, j, st, theta0, dtheta, haze)
+        # The first row nothing covers keeps the last surface's inverse range continued (with
+        # no coverage): the warp interpolates between it and the last covered row, which is
+        # exact for planar ground right up to the edge.
+        row = int(st[_ROW])
+        if row < nrows and (st[_R1] != 0.0 or st[_R2] != 0.0):
+            out_pre[j, row, PRE_IR] = _inverse_range_on_line(
+                row_cs[row, 0], row_cs[row, 1], st[_R1], st[_Z1], st[_R2], st[_Z2])
 
 
 @njit(cache=True)
 def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x,
                  pages_y, log2_page, level_nx, level_ny, levels, spacing, extent_x, extent_y,
                  z_max, pat_top, pat_rgb, pat_bands, lut, ex, ey, ez, phi_lo, dphi, theta0,
-                 dtheta, nrows, r_switch, r_far, haze, row_cs, pre):
+                 dtheta, nrows, r_switch, r_far, haze, row_cs, top_cs, pre):
     phi = phi_lo + (j + 0.5) * dphi
     dx = math.sin(phi)
     dy = math.cos(phi)
@@ -245,9 +310,9 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
     visits = 0
     want = 0
     level = 0
-    # The last voxel's exit colour and elevation angle, valid while `cached`.
+    # The last voxel's exit elevation angle, valid while `cached`.
     cached = False
-    c1r = c1g = c1b = t_out = 0.0
+    t_out = 0.0
     d_l = spacing
     r = r_lo
     z_prev = 0.0
@@ -267,6 +332,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
     t_dy = math.inf
     page = -1
     page_key = -1
+    miss_key = -1  # in fallback: the wanted level's page that was missing
     inv_d = 1.0 / spacing
     restart = True
     while r < r_hi:
@@ -293,6 +359,8 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
                 level += 1
             if page < 0:
                 break  # malformed table (the loader rejects it): stop rather than read garbage
+            if level > want:
+                miss_key = _page_key(qx, qy, spacing * (1 << want), log2_page, pages_x[want])
             inv_d = 1.0 / d_l  # guard: d_l >= spacing > 0
             page_key = (iy >> log2_page) * pages_x[level] + (ix >> log2_page)
             step_x, t_dx, t_max_x = _dda_axis(ix, d_l, ex, dx, inv_dx)
@@ -305,7 +373,15 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
                 page_key = key
                 page = _page_of(page_table, table_offset, pages_x, pages_y, log2_page, level,
                                 ix, iy)
-                if page < 0 or level > want:
+                if page < 0:
+                    restart = True
+                    continue
+            if level > want:
+                # Falling back: back to the wanted level as soon as the line leaves the page
+                # it lacked (that level's page, not this coarser one's).
+                nudge = r + 1e-7 * spacing + 1e-12 * r
+                if _page_key(ex + nudge * dx, ey + nudge * dy, spacing * (1 << want), log2_page,
+                             pages_x[want]) != miss_key:
                     restart = True
                     continue
         vx = ix & mask
@@ -327,7 +403,8 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             have_prev = True
             z_prev = z_in
             if z_in > r * tan_max:
-                _wall(pre, j, st, nrows, theta0, dtheta, row_cs, haze, r, z_in - _SKIRT_M, z_in,
+                _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages, lut,
+                      r, z_in - _SKIRT_M, z_in,
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 0),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 1),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 2))
@@ -336,7 +413,8 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             cached = False  # the surface jumps here: nothing of the last voxel carries over
             if z_in > z_prev and z_in > r * tan_max:
                 # A step up between voxels (a cliff, a building edge): a vertical wall at r.
-                _wall(pre, j, st, nrows, theta0, dtheta, row_cs, haze, r, z_prev, z_in,
+                _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages, lut,
+                      r, z_prev, z_in,
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 0),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 1),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 2))
@@ -354,7 +432,8 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             for band in range(pat_bands[k]):
                 hi = top + pat_top[k, band]
                 if hi > r * tan_max:
-                    _wall(pre, j, st, nrows, theta0, dtheta, row_cs, haze, r, lo, hi,
+                    _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages,
+                          lut, r, lo, hi,
                           pat_rgb[k, band, 0], pat_rgb[k, band, 1], pat_rgb[k, band, 2])
                     tan_max = _tan_of(st[_TMAX], hi, r)
                 lo = hi
@@ -362,27 +441,18 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             cg = pat_rgb[k, pat_bands[k] - 1, 1]
             cb = pat_rgb[k, pat_bands[k] - 1, 2]
             if lo > r_next * tan_max:
-                _surface(pre, j, st, nrows, theta0, dtheta, row_cs, haze, r, lo, r_next, lo,
-                         cr, cg, cb, cr, cg, cb, math.nan)
+                _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r, lo, r_next,
+                         lo, math.nan, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb)
                 tan_max = _tan_of(st[_TMAX], lo, r_next)
             z_prev = lo  # the drop back to the ground beyond is never seen from outside
         else:
             z_out = _corner_z(z_pages, page, vy, vx, u1, v1) - ez
             if z_out > r_next * tan_max or z_in > r * tan_max:
-                # Visible: colours at both ends (the entry's is the last voxel's exit colour
-                # where the surface runs on continuously, as it nearly always does).
-                if cached:
-                    c0r, c0g, c0b, t_in = c1r, c1g, c1b, t_out
-                else:
-                    c0r = _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 0)
-                    c0g = _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 1)
-                    c0b = _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 2)
-                    t_in = math.nan
-                c1r = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 0)
-                c1g = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 1)
-                c1b = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 2)
-                t_out = _surface(pre, j, st, nrows, theta0, dtheta, row_cs, haze, r, z_in,
-                                 r_next, z_out, c0r, c0g, c0b, c1r, c1g, c1b, t_in)
+                # Visible. The entry's elevation angle is the last voxel's exit angle where
+                # the surface runs on continuously, as it nearly always does.
+                t_out = _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r,
+                                 z_in, r_next, z_out, t_out if cached else math.nan, rgb_pages,
+                                 lut, page, vy, vx, u0, v0, u1, v1, 0.0, 0.0, 0.0)
                 tan_max = _tan_of(st[_TMAX], z_out, r_next)
                 cached = True
             else:
@@ -409,47 +479,53 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
 
 
 @njit(cache=True)
-def _wall(pre, j, st, nrows, theta0, dtheta, row_cs, haze, r, z_lo, z_hi, cr, cg, cb):
-    """A vertical face at ground range r from height z_lo to z_hi (relative to the eye)."""
+def _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages, lut, r, z_lo,
+          z_hi, cr, cg, cb):
+    """A vertical face of constant colour at ground range r from height z_lo to z_hi
+    (relative to the eye)."""
     a = math.atan2(z_lo, r)
     b = math.atan2(z_hi, r)
     a = max(a, st[_TMAX])
     if b > a:
-        _emit(pre, j, st, nrows, theta0, dtheta, row_cs, haze, a, b, cr, cg, cb, cr, cg, cb,
-              r, z_lo, r, z_hi)
+        _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, 0.0, 1.0,
+              r, z_lo, r, z_hi, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb)
 
 
 @njit(cache=True)
-def _surface(pre, j, st, nrows, theta0, dtheta, row_cs, haze, r1, z1, r2, z2, c1r, c1g, c1b, c2r,
-             c2g, c2b, t1):
+def _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r1, z1, r2, z2, t1,
+             rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, cr, cg, cb):
     """The surface from (r1, z1) to (r2, z2): the part rising above the current horizon.
 
     t1: elevation angle of (r1, z1) if known (NaN: computed here). Returns that of (r2, z2).
+    Colour: the voxel's bilinear colours from local point (u0, v0) to (u1, v1), or constant
+    (cr, cg, cb) if page < 0.
     """
     if math.isnan(t1):
         t1 = math.atan2(z1, r1)
     t2 = math.atan2(z2, r2)
     t_far = t2
+    lo = t1
+    hi = t2
+    t_lo = 0.0
+    t_hi = 1.0
     if t2 < t1:
         # Seen from the eye the segment runs downwards in angle: only its near end can show
-        # (a crest); swap so the interval is increasing, colours with it.
-        t1, t2 = t2, t1
-        c1r, c2r = c2r, c1r
-        c1g, c2g = c2g, c1g
-        c1b, c2b = c2b, c1b
+        # (a crest).
+        lo = t2
+        hi = t1
+        t_lo = 1.0
+        t_hi = 0.0
     tmax = st[_TMAX]
-    if t2 <= tmax:
+    if hi <= tmax:
         return t_far
-    a = t1
+    a = lo
+    ta = t_lo
     if a < tmax:
-        # Only the part above the horizon: its colour where it emerges.
-        f = (tmax - t1) / (t2 - t1)  # guard: t2 > tmax > t1
-        c1r = c1r + (c2r - c1r) * f
-        c1g = c1g + (c2g - c1g) * f
-        c1b = c1b + (c2b - c1b) * f
+        # Only the part above the horizon, from where it emerges.
         a = tmax
-    _emit(pre, j, st, nrows, theta0, dtheta, row_cs, haze, a, t2, c1r, c1g, c1b, c2r, c2g, c2b,
-          r1, z1, r2, z2)
+        ta = _param_at(math.cos(tmax), math.sin(tmax), r1, z1, r2, z2)
+    _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, hi, ta, t_hi,
+          r1, z1, r2, z2, rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, cr, cg, cb)
     return t_far
 
 
@@ -479,7 +555,8 @@ def _map_point(sx, sy, m, mapping, phi_lo, dphi, span, full, theta0, dtheta):
 
 @njit(cache=True, parallel=True)
 def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height,
-                horizon, dz_row, height_above, sky, earth, haze, sky_haze, margin_m, block,
+                horizon, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0,
+                sky_haze_dt, margin_m, block,
                 cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, out_rgb, out_iz, out_range,
                 out_cloud):
     """Every output pixel and sample from the pre-image: roll, vertical perspective and the
@@ -493,7 +570,7 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
 
     Per pixel (out_rgb, at its centre): the terrain over the sky or earth plane (the share of
     the pixel's samples below the horizon sees the earth), with haze (sky_haze: the sky's
-    haze at each pre-image row's centre elevation). Per sample (out_iz):
+    haze at elevations sky_haze_t0 + (i + 1/2) sky_haze_dt). Per sample (out_iz):
     1/z of the terrain pushed back by the polygon margin where the terrain covers the sample
     (coverage >= 1/2), else 0 (sky and earth never hide a polygon); so a hill's silhouette
     against a polygon behind it keeps the samples' resolution. out_range: the pixel's nearest
@@ -555,10 +632,7 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                     alpha = min(a00 + a10 + a01 + a11, 1.0)
                     ir = 0.0
                     if alpha > 0.0:
-                        # Inverse range weighted by coverage: 1/range is close to linear
-                        # across a plane, so grazing ground interpolates well.
-                        ir = (a00 * pre[c0, r0, PRE_IR] + a10 * pre[c1, r0, PRE_IR]
-                              + a01 * pre[c0, r1, PRE_IR] + a11 * pre[c1, r1, PRE_IR]) / (a00 + a10 + a01 + a11)
+                        ir = _inverse_range(pre, c0, c1, r0, r1, w00, w10, w01, w11)
                     # Behind the terrain: the earth plane below the horizon, the sky above it,
                     # each for its share of the samples.
                     n_earth = 0
@@ -586,7 +660,8 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                             eg = eg * (1.0 - he) + haze[4] * he
                             eb = eb * (1.0 - he) + haze[5] * he
                         if n_earth < s_count:
-                            q0, q1, fq = _rows(rr, sky_haze.shape[0])
+                            q0, q1, fq = _rows((theta0 + (rr + 0.5) * dtheta - sky_haze_t0)
+                                               / sky_haze_dt - 0.5, sky_haze.shape[0])
                             hs = sky_haze[q0] + (sky_haze[q1] - sky_haze[q0]) * fq
                             sr = sr * (1.0 - hs) + haze[3] * hs
                             sg = sg * (1.0 - hs) + haze[4] * hs
@@ -600,15 +675,8 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                     cg = pg + keep * (fe * eg + (1.0 - fe) * sg)
                     cb = pb + keep * (fe * eb + (1.0 - fe) * sb)
                     nearest = earth_range if alpha < 1.0 else math.inf
-                    iz = 0.0
                     if ir > 0.0:
-                        rng = 1.0 / ir  # guard: ir > 0
-                        nearest = min(nearest, rng)
-                        # A polygon lying on the terrain (a runway on its pad) must win: push
-                        # the terrain back by margin_m of height, i.e. margin_m / sin(depression)
-                        # of range (the sine floored at 1e-3: at most 1000 margins).
-                        push = margin_m / max(-sin_el, 1e-3) if sin_el < 0.0 else margin_m
-                        iz = ray / (rng + push)
+                        nearest = min(nearest, 1.0 / ir)  # guard: ir > 0
                     out_range[y, x] = nearest
                     if cloud_on:
                         cr, cg, cb = _cloud_over(cloud_pre, full, c, rr, cloud_col_ratio,
@@ -617,24 +685,70 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                     out_rgb[y, x, 0] = cr
                     out_rgb[y, x, 1] = cg
                     out_rgb[y, x, 2] = cb
-                    # Per sample: is the terrain there (its coverage at the sample)? Only
-                    # silhouette pixels need the lookups.
-                    whole = (pre[c0, r0, PRE_A] >= 1.0 and pre[c1, r0, PRE_A] >= 1.0
-                             and pre[c0, r1, PRE_A] >= 1.0 and pre[c1, r1, PRE_A] >= 1.0)
+                    # Per sample: the terrain's coverage and depth there (only near terrain).
+                    near = (pre[c0, r0, PRE_A] > 0.0 or pre[c1, r0, PRE_A] > 0.0
+                            or pre[c0, r1, PRE_A] > 0.0 or pre[c1, r1, PRE_A] > 0.0)
                     for s in range(s_count):
-                        if iz == 0.0 or whole:
-                            out_iz[y, x, s] = iz
+                        out_iz[y, x, s] = 0.0
+                        if not near:
                             continue
                         qx = x + offsets[s, 0]
                         qy = y + offsets[s, 1]
                         c, rr = _block_point(qx, qy, exact, x0, y0, inv_b, c00, c10, c01, c11,
                                              r00, r10, r01, r11, m, mapping, phi_lo, dphi, span,
                                              full, theta0, dtheta)
-                        c0, c1, fc = _columns(c, ncols, full)
-                        r0, r1, fr = _rows(rr, nrows)
-                        cover = ((1.0 - fc) * (1.0 - fr) * pre[c0, r0, PRE_A] + fc * (1.0 - fr) * pre[c1, r0, PRE_A]
-                                 + (1.0 - fc) * fr * pre[c0, r1, PRE_A] + fc * fr * pre[c1, r1, PRE_A])
-                        out_iz[y, x, s] = iz if cover >= 0.5 else 0.0
+                        out_iz[y, x, s] = _sample_inverse_depth(
+                            pre, ncols, nrows, full, c, rr, (qx - mapping[1]) * inv_sxs,
+                            (qy - mapping[3]) * inv_sys, dz_row, margin_m)
+
+
+@njit(cache=True, inline="always")
+def _inverse_range(pre, c0, c1, r0, r1, w00, w10, w01, w11):
+    """Inverse range interpolated bilinearly over the four texels that hold one (1 / range
+    is nearly linear across a plane, so grazing ground interpolates well; a partly covered
+    texel, and the first uncovered one above a column's last surface, hold that surface
+    continued, so edges interpolate too; texels never reached hold 0 and are left out)."""
+    num = 0.0
+    den = 0.0
+    if pre[c0, r0, PRE_IR] != 0.0:
+        num += w00 * pre[c0, r0, PRE_IR]
+        den += w00
+    if pre[c1, r0, PRE_IR] != 0.0:
+        num += w10 * pre[c1, r0, PRE_IR]
+        den += w10
+    if pre[c0, r1, PRE_IR] != 0.0:
+        num += w01 * pre[c0, r1, PRE_IR]
+        den += w01
+    if pre[c1, r1, PRE_IR] != 0.0:
+        num += w11 * pre[c1, r1, PRE_IR]
+        den += w11
+    return num / den if den > 0.0 else 0.0  # guard: den > 0
+
+
+@njit(cache=True, inline="always")
+def _sample_inverse_depth(pre, ncols, nrows, full, c, rr, tx, ty, dz_row, margin_m):
+    """1/z a polygon must exceed to be seen in front of the terrain at one sample (pre-image
+    coordinates c, rr; eye ray (tx, ty, 1)), or 0 where the terrain covers less than half of
+    it. The terrain is pushed back by margin_m of height, i.e. margin_m / sin(depression) of
+    range (the sine floored at 1e-3, at most 1000 margins), so a polygon lying on the terrain
+    (a runway on its pad) wins against terrain rounded by interpolation."""
+    c0, c1, fc = _columns(c, ncols, full)
+    r0, r1, fr = _rows(rr, nrows)
+    a00 = (1.0 - fc) * (1.0 - fr) * pre[c0, r0, PRE_A]
+    a10 = fc * (1.0 - fr) * pre[c1, r0, PRE_A]
+    a01 = (1.0 - fc) * fr * pre[c0, r1, PRE_A]
+    a11 = fc * fr * pre[c1, r1, PRE_A]
+    cover = a00 + a10 + a01 + a11
+    if cover < 0.5:
+        return 0.0
+    ir = _inverse_range(pre, c0, c1, r0, r1, (1.0 - fc) * (1.0 - fr), fc * (1.0 - fr),
+                        (1.0 - fc) * fr, fc * fr)
+    if ir <= 0.0:
+        return 0.0
+    ray = math.sqrt(tx * tx + ty * ty + 1.0)
+    sin_el = (dz_row[0] * tx + dz_row[1] * ty + dz_row[2]) / ray  # guard: ray >= 1
+    push = margin_m / max(-sin_el, 1e-3) if sin_el < 0.0 else margin_m
+    return ray / (1.0 / ir + push)  # guard: ir > 0
 
 
 @njit(cache=True, inline="always")

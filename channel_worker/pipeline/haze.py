@@ -71,6 +71,8 @@ def haze_amount(params, range_m, sin_elev):
     """H in [0, 1] for a surface at range_m (metres, may be inf for the sky) along a ray whose
     elevation sine is sin_elev."""
     beta = params[1]
+    if beta <= 0.0 or range_m <= 0.0:
+        return 0.0  # no air to see through (beta underflows 1e3 scale heights above the base)
     x = range_m * sin_elev * params[2]
     if math.isinf(range_m):
         if sin_elev <= 0.0 or params[2] == 0.0:
@@ -78,9 +80,15 @@ def haze_amount(params, range_m, sin_elev):
         tau = beta / (sin_elev * params[2])  # guard: both factors > 0 here
     elif abs(x) < 1e-4:
         tau = beta * range_m * (1.0 - 0.5 * x + x * x / 6.0)
+    elif x < -700.0:
+        # Far down into air e^700 times denser: exp(-x) would overflow; in logarithms,
+        # log tau = log beta + log R - x - log(-x). Guard: beta, R > 0 and -x > 700.
+        log_tau = math.log(beta) + math.log(range_m) - x - math.log(-x)
+        if log_tau > 50.0:
+            return 1.0
+        tau = math.exp(log_tau)
     else:
-        # Guard: |x| >= 1e-4 so the division is safe; exp(-x) for x < -700 overflows to inf
-        # and tau to inf, which exp(-tau) turns into H = 1 as it should.
+        # Guard: |x| >= 1e-4 so the division is safe.
         tau = beta * range_m * (-math.expm1(-x)) / x
     return -math.expm1(-tau)
 

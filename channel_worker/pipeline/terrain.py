@@ -102,7 +102,7 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
                 np.array(earth_dz_screen(view)), earth_dz_row(view),
                 height_above_earth(database, view), database.sky_colour.astype(np.float32),
                 database.earth_colour.astype(np.float32), haze,
-                _sky_haze(haze, theta0, dtheta, pre.shape[1]), float(database.terrain_margin_m), WARP_BLOCK, cloud_on, cloud_pre, col_ratio,
+                *_sky_haze(haze, grid), float(database.terrain_margin_m), WARP_BLOCK, cloud_on, cloud_pre, col_ratio,
                 row_ratio, rgb, inv_z, range_m, cloud)
     return Background(rgb=rgb, inv_z=inv_z, range_m=range_m, stats=stats,
                       cloud=cloud if cloud_on else None)
@@ -203,14 +203,16 @@ def _scan(database: Database, view: View, grid: PreimageGrid, haze: np.ndarray, 
         stats["terrain_eye_clamped"] = 1
     level_nx = np.array([terrain.level_size(lv)[0] for lv in range(terrain.levels)], np.int64)
     level_ny = np.array([terrain.level_size(lv)[1] for lv in range(terrain.levels)], np.int64)
-    # Level L + 1 takes over where a level-L voxel would be 2**(bias + 1) pixels wide, i.e. at
-    # slant range spacing 2**(L + bias) / pixel angle; the slant range is bounded below by the
-    # ground range and the eye's height above or below the database's height range.
+    # Level L + 1 takes over where a level-L voxel has shrunk to 2**bias pixels (a level-L + 1
+    # voxel is then 2**(bias + 1) pixels wide), i.e. at slant range spacing 2**(L - bias) /
+    # pixel angle: voxels stay 2**bias to 2**(bias + 1) pixels wide, one level coarser each
+    # time the range doubles. The slant range is bounded below by the ground range and the
+    # eye's height above or below the database's height range.
     pixel = (math.atan(view.tan_right) - math.atan(view.tan_left)) / view.width
     dz_min = max(float(eye[2]) - terrain.z_max, terrain.z_min - float(eye[2]), 0.0)
     r_switch = np.full(terrain.levels, np.inf)
     for lv in range(terrain.levels - 1):
-        slant = terrain.spacing_m * 2.0 ** (lv + level_bias + 1) / pixel  # guard: pixel > 0
+        slant = terrain.spacing_m * 2.0 ** (lv - level_bias) / pixel  # guard: pixel > 0
         r_switch[lv] = math.sqrt(max(slant * slant - dz_min * dz_min, 0.0))
     r_far = float(view.far)
     if database.haze is not None:
@@ -231,6 +233,8 @@ def _scan(database: Database, view: View, grid: PreimageGrid, haze: np.ndarray, 
         pat_bands[k] = len(p.top_m)
     centres = grid.theta0 + (np.arange(grid.nrows) + 0.5) * grid.dtheta
     row_cs = np.ascontiguousarray(np.stack([np.cos(centres), np.sin(centres)], 1))
+    tops = grid.theta0 + (np.arange(grid.nrows) + 1.0) * grid.dtheta
+    top_cs = np.ascontiguousarray(np.stack([np.cos(tops), np.sin(tops)], 1))
     pre = np.empty((grid.ncols, grid.nrows, PRE_CHANNELS), np.float32)
     visits = np.zeros(grid.ncols, np.int64)
     nx, ny = terrain.extent_m
@@ -238,19 +242,22 @@ def _scan(database: Database, view: View, grid: PreimageGrid, haze: np.ndarray, 
                 terrain.pages_x, terrain.pages_y, log2_page, level_nx, level_ny,
                 float(terrain.spacing_m), float(nx), float(ny), float(terrain.z_max), pat_top,
                 pat_rgb, pat_bands, _SRGB_LUT, eye, grid.phi_lo, grid.dphi, grid.ncols,
-                grid.theta0, grid.dtheta, grid.nrows, r_switch, r_far, haze, row_cs, pre, visits)
+                grid.theta0, grid.dtheta, grid.nrows, r_switch, r_far, haze, row_cs, top_cs, pre,
+                visits)
     stats["terrain_voxels"] = int(visits.sum())
     stats["terrain_columns"] = grid.ncols
     stats["terrain_rows"] = grid.nrows
     return pre
 
 
-def _sky_haze(haze: np.ndarray, theta0: float, dtheta: float, nrows: int) -> np.ndarray:
-    """Haze of the sky (range infinite) at each pre-image row's centre elevation."""
+def _sky_haze(haze: np.ndarray, grid: PreimageGrid) -> tuple[np.ndarray, float, float]:
+    """Haze of the sky (range infinite) at the centre elevation of each of the view's
+    pre-image rows: (table, elevation of row 0's lower edge, row height), radians."""
     if haze[0] == 0.0:
-        return np.zeros(1)
-    sin = np.sin(theta0 + (np.arange(nrows) + 0.5) * dtheta)
-    return np.array([haze_amount(haze, math.inf, max(float(x), 0.0)) for x in sin])
+        return np.zeros(1), grid.theta0, grid.theta1 - grid.theta0
+    sin = np.sin(grid.theta0 + (np.arange(grid.nrows) + 0.5) * grid.dtheta)
+    table = np.array([haze_amount(haze, math.inf, max(float(x), 0.0)) for x in sin])
+    return table, grid.theta0, grid.dtheta
 
 
 def _scan_clouds(database: Database, view: View, grid: PreimageGrid,
