@@ -557,8 +557,8 @@ def _map_point(sx, sy, m, mapping, phi_lo, dphi, span, full, theta0, dtheta):
 def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height,
                 horizon, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0,
                 sky_haze_dt, margin_m, block,
-                cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, out_rgb, out_iz, out_range,
-                out_cloud):
+                cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile, depth_need,
+                out_rgb, out_iz, out_range, out_cloud):
     """Every output pixel and sample from the pre-image: roll, vertical perspective and the
     off-axis frustum in one inverse mapping, bilinear (anti-aliased) resampling.
 
@@ -580,7 +580,11 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
     cloud_row_ratio: pre-image texels per cloud texel) is interpolated bilinearly and laid over
     the background where the background lies beyond the cloud's entry range; out_cloud keeps
     the pixel's cloud (premultiplied RGB, opacity, entry range) for the polygons.
+
+    depth_need: per depth_tile x depth_tile sub-area (row-major), whether out_iz is wanted
+    there (sub-areas without polygons have nothing to test against the terrain: left 0).
     """
+    tiles_x = (width + depth_tile - 1) // depth_tile
     ncols = pre.shape[0]
     nrows = pre.shape[1]
     span = ncols * dphi
@@ -686,8 +690,10 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                     out_rgb[y, x, 1] = cg
                     out_rgb[y, x, 2] = cb
                     # Per sample: the terrain's coverage and depth there (only near terrain).
-                    near = (pre[c0, r0, PRE_A] > 0.0 or pre[c1, r0, PRE_A] > 0.0
-                            or pre[c0, r1, PRE_A] > 0.0 or pre[c1, r1, PRE_A] > 0.0)
+                    t = (y // depth_tile) * tiles_x + x // depth_tile
+                    near = (depth_need[t]
+                            and (pre[c0, r0, PRE_A] > 0.0 or pre[c1, r0, PRE_A] > 0.0
+                                 or pre[c0, r1, PRE_A] > 0.0 or pre[c1, r1, PRE_A] > 0.0))
                     for s in range(s_count):
                         out_iz[y, x, s] = 0.0
                         if not near:

@@ -82,19 +82,14 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
     check_filter(filter)
     check_max_translucent(max_translucent)
     clock = _Clock(times)
+    background = None  # the terrain stage's output (subarea renderer, scenes that have one)
     with clock("view"):
         view = make_view(channel, eyepoint)
-    if renderer == "scanline" and (database.terrain is not None or database.haze is not None):
+    atmosphere = (database.terrain is not None or database.haze is not None
+                  or database.clouds is not None)
+    if renderer == "scanline" and atmosphere:
         raise ValueError("renderer: the scanline renderer (a cross-check of the polygon "
-                         "visibility) draws no terrain or haze; use \"subarea\"")
-    # The terrain (and hazed sky) first: the polygons are depth-tested against it. A scene
-    # without terrain or haze skips the stage.
-    background = None
-    if database.terrain is not None or database.haze is not None:
-        with clock("terrain"):
-            background = render_terrain(database, view, offsets, level_bias=terrain_bias)
-    if stats is not None and background is not None:
-        stats.update(background.stats)
+                         "visibility) draws no terrain, haze or clouds; use \"subarea\"")
     with clock("cull"):
         draws = cull(database, view)
     with clock("transform"):
@@ -110,6 +105,15 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             edges = setup_edges(screen, view.width, view.height)
         with clock("binning"):
             bins = bin_features(edges, screen.start, view.width, view.height, subarea)
+        # The terrain (and the hazed sky, clouds) before the visibility: the polygons are
+        # depth-tested against it, so it needs per-sample depth only in the sub-areas that
+        # hold polygons. A scene without terrain, haze or clouds skips the stage.
+        if atmosphere:
+            with clock("terrain"):
+                background = render_terrain(database, view, offsets, level_bias=terrain_bias,
+                                            depth_tiles=(bins.size, np.diff(bins.start) > 0))
+            if stats is not None:
+                stats.update(background.stats)
         if filter == "box" and trace is None:
             # Default quality: pixels straight from each sub-area, no sample store in memory.
             with clock("visibility"):

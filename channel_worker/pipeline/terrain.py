@@ -51,7 +51,8 @@ _SRGB_LUT = np.array([c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.
 
 
 def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
-                   level_bias: int = DEFAULT_LEVEL_BIAS) -> Background | None:
+                   level_bias: int = DEFAULT_LEVEL_BIAS,
+                   depth_tiles: tuple[int, np.ndarray] | None = None) -> Background | None:
     """The terrain (and hazed sky and earth) every sample sees, or None if the scene has
     neither terrain nor haze.
 
@@ -61,6 +62,9 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
         offsets: (S, 2) sample positions inside the pixel (samples.sample_pattern).
         level_bias: resolution level bias (voxel width 2**bias to 2**(bias + 1) pixels; -1 is
             finer and slower, +1 coarser and faster).
+        depth_tiles: (size, mask): per-sample depth (Background.inv_z) is needed only in the
+            size x size pixel sub-areas whose mask entry (row-major) is set, those holding
+            polygons to test against the terrain; elsewhere it is left 0. None: everywhere.
 
     Returns:
         Background with per-sample colour and depth-test 1/z and per-pixel range; its stats
@@ -84,6 +88,10 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
         pre = _scan(database, view, grid, haze, level_bias, stats)
         full, phi_lo, dphi, theta0, dtheta = grid.full, grid.phi_lo, grid.dphi, grid.theta0, \
             grid.dtheta
+    if depth_tiles is None:
+        tile, need = max(h, w), np.ones(1, np.bool_)
+    else:
+        tile, need = int(depth_tiles[0]), np.ascontiguousarray(depth_tiles[1], np.bool_)
     cloud_on = database.clouds is not None
     if cloud_on:
         cloud_pre, col_ratio, row_ratio = _scan_clouds(database, view, grid, haze)
@@ -103,7 +111,7 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
                 height_above_earth(database, view), database.sky_colour.astype(np.float32),
                 database.earth_colour.astype(np.float32), haze,
                 *_sky_haze(haze, grid), float(database.terrain_margin_m), WARP_BLOCK, cloud_on, cloud_pre, col_ratio,
-                row_ratio, rgb, inv_z, range_m, cloud)
+                row_ratio, tile, need, rgb, inv_z, range_m, cloud)
     return Background(rgb=rgb, inv_z=inv_z, range_m=range_m, stats=stats,
                       cloud=cloud if cloud_on else None)
 
