@@ -240,7 +240,7 @@ def _page_of(page_table, table_offset, pages_x, pages_y, log2_page, level, ix, i
 def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x, pages_y,
                 log2_page, level_nx, level_ny, spacing, extent_x, extent_y, z_max, pat_top,
                 pat_rgb, pat_bands, lut, eye, phi_lo, dphi, ncols, theta0, dtheta, nrows,
-                r_switch, r_far, haze, row_cs, top_cs, out_pre, out_visits):
+                r_switch, r_far, haze, row_cs, top_cs, first_row, out_pre, out_visits):
     """One radial scan across the ground grid per pre-image column (seed 002).
 
     Column j is the vertical half-plane through the eye at azimuth phi_lo + (j + 1/2) dphi
@@ -257,23 +257,36 @@ def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x
 
     eye: (3,) eye position relative to the database origin, metres (float64).
     r_far: ground range beyond which nothing is scanned (far plane or opaque haze).
+    first_row[k]: the lowest row a column whose index has k trailing zero bits scans (k
+    capped at first_row.size - 1). Towards the nadir output pixels span more azimuth, so
+    there only every 2^k-th column is needed (fill_skipped interpolates the others); such a
+    column starts where its first row's ray descends to the highest terrain (exact).
     out_visits[j]: voxels visited by column j.
     """
     levels = level_nx.shape[0]
     ex = eye[0]
     ey = eye[1]
     ez = eye[2]
+    kmax = first_row.shape[0] - 1
     for j in prange(ncols):
         st = np.zeros(_STATE)
         for i in range(nrows):
             for c in range(PRE_CHANNELS):
                 out_pre[j, i, c] = 0.0
-        st[_TMAX] = theta0
+        k = kmax
+        if j != 0 and j != ncols - 1:  # the first and last columns scan every row
+            k = 0
+            while k < kmax and (j >> k) & 1 == 0:
+                k += 1
+        start = first_row[k]
+        st[_ROW] = start
+        theta_lo = theta0 + start * dtheta
+        st[_TMAX] = theta_lo
         out_visits[j] = _scan_column(
             j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x, pages_y,
             log2_page, level_nx, level_ny, levels, spacing, extent_x, extent_y, z_max, pat_top,
-            pat_rgb, pat_bands, lut, ex, ey, ez, phi_lo, dphi, theta0, dtheta, nrows, r_switch,
-            r_far, haze, row_cs, top_cs, out_pre)
+            pat_rgb, pat_bands, lut, ex, ey, ez, phi_lo, dphi, theta0, theta_lo, dtheta, nrows,
+            r_switch, r_far, haze, row_cs, top_cs, out_pre)
         # The row the scan stopped in holds what covered it so far (a silhouette).
         if int(st[_ROW]) < nrows and st[_AW] > 0.0:
             _finish_row(out_pre, j, st, theta0, dtheta, haze)
@@ -286,11 +299,41 @@ def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x
                 row_cs[row, 0], row_cs[row, 1], st[_R1], st[_Z1], st[_R2], st[_Z2])
 
 
+@njit(cache=True, parallel=True)
+def fill_skipped(pre, first_row, full):
+    """Texels a column did not scan (below its first row, see scan_kernel): interpolated in
+    azimuth between the nearest scanning columns of that row (every 2^k-th)."""
+    ncols = pre.shape[0]
+    kmax = first_row.shape[0] - 1
+    for i in prange(pre.shape[1]):
+        # The stride of row i: the smallest 2^k whose columns all scan it.
+        k = 0
+        while k < kmax and first_row[k] > i:
+            k += 1
+        stride = 1 << k
+        if stride == 1:
+            continue
+        for j in range(ncols):
+            if j % stride == 0 or j == ncols - 1:
+                continue
+            a = j - j % stride
+            b = a + stride
+            f = (j - a) / stride
+            if b >= ncols:
+                # Full circle: the grid is a multiple of every stride (column 0 follows);
+                # otherwise the last column, which scans every row.
+                b = 0 if full else ncols - 1
+                if not full:
+                    f = (j - a) / (ncols - 1 - a)  # guard: ncols - 1 > j > a
+            for c in range(PRE_CHANNELS):
+                pre[j, i, c] = (1.0 - f) * pre[a, i, c] + f * pre[b, i, c]
+
+
 @njit(cache=True)
 def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x,
                  pages_y, log2_page, level_nx, level_ny, levels, spacing, extent_x, extent_y,
                  z_max, pat_top, pat_rgb, pat_bands, lut, ex, ey, ez, phi_lo, dphi, theta0,
-                 dtheta, nrows, r_switch, r_far, haze, row_cs, top_cs, pre):
+                 theta_lo, dtheta, nrows, r_switch, r_far, haze, row_cs, top_cs, pre):
     phi = phi_lo + (j + 0.5) * dphi
     dx = math.sin(phi)
     dy = math.cos(phi)
@@ -299,10 +342,10 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
     # point can reach above that row (seed 002's column start point, made exact for relief).
     r_lo = 0.0
     if zrel_max < 0.0:
-        if theta0 >= 0.0:
+        if theta_lo >= 0.0:
             return 0  # everything lies below the eye and the column looks level or up
-        if theta0 > -0.5 * math.pi + 1e-9:
-            r_lo = zrel_max / math.tan(theta0)  # guard: tan(theta0) < 0 here
+        if theta_lo > -0.5 * math.pi + 1e-9:
+            r_lo = zrel_max / math.tan(theta_lo)  # guard: tan(theta_lo) < 0 here
     r_lo, r_hi = ground_ray_span(ex, ey, dx, dy, extent_x, extent_y, r_lo, r_far)
     if r_lo >= r_hi:
         return 0
@@ -317,7 +360,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
     r = r_lo
     z_prev = 0.0
     have_prev = False
-    tan_max = math.tan(theta0) if theta0 > -0.5 * math.pi + 1e-9 else -math.inf
+    tan_max = math.tan(theta_lo) if theta_lo > -0.5 * math.pi + 1e-9 else -math.inf
     # Guard: a zero direction component never crosses that family of grid lines.
     inv_dx = 1.0 / dx if dx != 0.0 else 0.0
     inv_dy = 1.0 / dy if dy != 0.0 else 0.0
@@ -565,8 +608,8 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
     Pre-image coordinates come from the exact world direction (azimuth, elevation); they are
     computed exactly at the corners of block x block pixel blocks and interpolated inside,
     unless the interpolation misses the exact value at the block centre by more than 1/50
-    texel (near the nadir or zenith, where azimuth turns fast): those blocks map every point
-    exactly.
+    texel (near the nadir or zenith, where azimuth turns fast): such a block is split in four,
+    and a quarter that still misses maps every point exactly.
 
     Per pixel (out_rgb, at its centre): the terrain over the sky or earth plane (the share of
     the pixel's samples below the horizon sees the earth), with haze (sky_haze: the sky's
@@ -600,112 +643,154 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
         for bx in range(blocks_x):
             x0 = bx * block
             y0 = by * block
-            c00, r00 = _map_point(x0, y0, m, mapping, phi_lo, dphi, span, full, theta0, dtheta)
-            c10, r10 = _map_point(x0 + block, y0, m, mapping, phi_lo, dphi, span, full, theta0, dtheta)
-            c01, r01 = _map_point(x0, y0 + block, m, mapping, phi_lo, dphi, span, full, theta0, dtheta)
-            c11, r11 = _map_point(x0 + block, y0 + block, m, mapping, phi_lo, dphi, span, full, theta0, dtheta)
-            cm, rm = _map_point(x0 + 0.5 * block, y0 + 0.5 * block, m, mapping, phi_lo, dphi,
-                                span, full, theta0, dtheta)
-            if full:
-                # Unwrap the corners around the first one (the columns are periodic).
-                c10 -= ncols * round((c10 - c00) / ncols)
-                c01 -= ncols * round((c01 - c00) / ncols)
-                c11 -= ncols * round((c11 - c00) / ncols)
-                cm -= ncols * round((cm - c00) / ncols)
-            exact = (abs(0.25 * (c00 + c10 + c01 + c11) - cm) > 0.02
-                     or abs(0.25 * (r00 + r10 + r01 + r11) - rm) > 0.02)
-            inv_b = 1.0 / block
-            for y in range(y0, min(y0 + block, height)):
-                for x in range(x0, min(x0 + block, width)):
-                    # The pixel centre: colour and range of the terrain.
-                    sx = x + 0.5
-                    sy = y + 0.5
-                    c, rr = _block_point(sx, sy, exact, x0, y0, inv_b, c00, c10, c01, c11, r00,
-                                         r10, r01, r11, m, mapping, phi_lo, dphi, span, full,
-                                         theta0, dtheta)
-                    c0, c1, fc = _columns(c, ncols, full)
-                    r0, r1, fr = _rows(rr, nrows)
-                    w00 = (1.0 - fc) * (1.0 - fr)
-                    w10 = fc * (1.0 - fr)
-                    w01 = (1.0 - fc) * fr
-                    w11 = fc * fr
-                    a00 = w00 * pre[c0, r0, PRE_A]
-                    a10 = w10 * pre[c1, r0, PRE_A]
-                    a01 = w01 * pre[c0, r1, PRE_A]
-                    a11 = w11 * pre[c1, r1, PRE_A]
-                    alpha = min(a00 + a10 + a01 + a11, 1.0)
-                    ir = 0.0
-                    if alpha > 0.0:
-                        ir = _inverse_range(pre, c0, c1, r0, r1, w00, w10, w01, w11)
-                    # Behind the terrain: the earth plane below the horizon, the sky above it,
-                    # each for its share of the samples.
-                    n_earth = 0
-                    for s in range(s_count):
-                        if kx * (x + offsets[s, 0]) + ky * (y + offsets[s, 1]) + k0 < 0.0:
-                            n_earth += 1
-                    tx = (sx - mapping[1]) * inv_sxs
-                    ty = (sy - mapping[3]) * inv_sys
-                    ez = dz_row[0] * tx + dz_row[1] * ty + dz_row[2]  # world z of the ray
-                    ray = math.sqrt(tx * tx + ty * ty + 1.0)
-                    sin_el = ez / ray  # guard: ray >= 1
-                    er, eg, eb = earth[0], earth[1], earth[2]
-                    sr, sg, sb = sky[0], sky[1], sky[2]
-                    earth_range = math.inf
-                    if n_earth > 0:
-                        # Guard: ez < 0 below the horizon; at it rounding may give 0 or a
-                        # tiny positive: the range becomes huge, never negative.
-                        earth_range = ray * height_above / max(-ez, 1e-300)
-                    if haze[0] != 0.0 and alpha < 1.0:
-                        # Only what the terrain leaves uncovered needs it. The sky's haze
-                        # depends on elevation alone: from the per-row table.
-                        if n_earth > 0:
-                            he = haze_amount(haze, earth_range, min(sin_el, -1e-9))
-                            er = er * (1.0 - he) + haze[3] * he
-                            eg = eg * (1.0 - he) + haze[4] * he
-                            eb = eb * (1.0 - he) + haze[5] * he
-                        if n_earth < s_count:
-                            q0, q1, fq = _rows((theta0 + (rr + 0.5) * dtheta - sky_haze_t0)
-                                               / sky_haze_dt - 0.5, sky_haze.shape[0])
-                            hs = sky_haze[q0] + (sky_haze[q1] - sky_haze[q0]) * fq
-                            sr = sr * (1.0 - hs) + haze[3] * hs
-                            sg = sg * (1.0 - hs) + haze[4] * hs
-                            sb = sb * (1.0 - hs) + haze[5] * hs
-                    fe = n_earth * inv_s
-                    keep = 1.0 - alpha
-                    pr = w00 * pre[c0, r0, PRE_R] + w10 * pre[c1, r0, PRE_R] + w01 * pre[c0, r1, PRE_R] + w11 * pre[c1, r1, PRE_R]
-                    pg = w00 * pre[c0, r0, PRE_G] + w10 * pre[c1, r0, PRE_G] + w01 * pre[c0, r1, PRE_G] + w11 * pre[c1, r1, PRE_G]
-                    pb = w00 * pre[c0, r0, PRE_B] + w10 * pre[c1, r0, PRE_B] + w01 * pre[c0, r1, PRE_B] + w11 * pre[c1, r1, PRE_B]
-                    cr = pr + keep * (fe * er + (1.0 - fe) * sr)
-                    cg = pg + keep * (fe * eg + (1.0 - fe) * sg)
-                    cb = pb + keep * (fe * eb + (1.0 - fe) * sb)
-                    nearest = earth_range if alpha < 1.0 else math.inf
-                    if ir > 0.0:
-                        nearest = min(nearest, 1.0 / ir)  # guard: ir > 0
-                    out_range[y, x] = nearest
-                    if cloud_on:
-                        cr, cg, cb = _cloud_over(cloud_pre, full, c, rr, cloud_col_ratio,
-                                                 cloud_row_ratio, nearest, cr, cg, cb, out_cloud,
-                                                 y, x)
-                    out_rgb[y, x, 0] = cr
-                    out_rgb[y, x, 1] = cg
-                    out_rgb[y, x, 2] = cb
-                    # Per sample: the terrain's coverage and depth there (only near terrain).
-                    t = (y // depth_tile) * tiles_x + x // depth_tile
-                    near = (depth_need[t]
-                            and (pre[c0, r0, PRE_A] > 0.0 or pre[c1, r0, PRE_A] > 0.0
-                                 or pre[c0, r1, PRE_A] > 0.0 or pre[c1, r1, PRE_A] > 0.0))
-                    for s in range(s_count):
-                        out_iz[y, x, s] = 0.0
-                        if not near:
-                            continue
-                        qx = x + offsets[s, 0]
-                        qy = y + offsets[s, 1]
-                        c, rr = _block_point(qx, qy, exact, x0, y0, inv_b, c00, c10, c01, c11,
-                                             r00, r10, r01, r11, m, mapping, phi_lo, dphi, span,
-                                             full, theta0, dtheta)
-                        out_iz[y, x, s] = _sample_inverse_depth(
-                            pre, ncols, nrows, full, c, rr, (qx - mapping[1]) * inv_sxs,
-                            (qy - mapping[3]) * inv_sys, dz_row, margin_m)
+            ok, c00, c10, c01, c11, r00, r10, r01, r11 = _block_corners(
+                x0, y0, block, m, mapping, phi_lo, dphi, span, full, theta0, dtheta, ncols)
+            if ok:
+                _warp_block(x0, y0, block, False, c00, c10, c01, c11, r00, r10, r01, r11,
+                            pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
+                            k0, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0, sky_haze_dt,
+                            margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
+                            tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
+                            out_rgb, out_iz, out_range, out_cloud)
+                continue
+            # Mapping too curved for the block (near the nadir or zenith): its quarters, each
+            # interpolated if it can be, else mapped point by point.
+            half = block // 2
+            for q in range(4):
+                qx0 = x0 + (q % 2) * half
+                qy0 = y0 + (q // 2) * half
+                ok, c00, c10, c01, c11, r00, r10, r01, r11 = _block_corners(
+                    qx0, qy0, half, m, mapping, phi_lo, dphi, span, full, theta0, dtheta, ncols)
+                _warp_block(qx0, qy0, half, not ok, c00, c10, c01, c11, r00, r10, r01, r11,
+                            pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
+                            k0, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0, sky_haze_dt,
+                            margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
+                            tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
+                            out_rgb, out_iz, out_range, out_cloud)
+
+
+@njit(cache=True, inline="always")
+def _block_corners(x0, y0, size, m, mapping, phi_lo, dphi, span, full, theta0, dtheta, ncols):
+    """Pre-image coordinates of a block's corners, and whether interpolating them misses the
+    exact value at the block's centre by at most 1/50 texel."""
+    c00, r00 = _map_point(x0, y0, m, mapping, phi_lo, dphi, span, full, theta0, dtheta)
+    c10, r10 = _map_point(x0 + size, y0, m, mapping, phi_lo, dphi, span, full, theta0, dtheta)
+    c01, r01 = _map_point(x0, y0 + size, m, mapping, phi_lo, dphi, span, full, theta0, dtheta)
+    c11, r11 = _map_point(x0 + size, y0 + size, m, mapping, phi_lo, dphi, span, full, theta0,
+                          dtheta)
+    cm, rm = _map_point(x0 + 0.5 * size, y0 + 0.5 * size, m, mapping, phi_lo, dphi, span, full,
+                        theta0, dtheta)
+    if full:
+        # Unwrap the corners around the first one (the columns are periodic).
+        c10 -= ncols * round((c10 - c00) / ncols)
+        c01 -= ncols * round((c01 - c00) / ncols)
+        c11 -= ncols * round((c11 - c00) / ncols)
+        cm -= ncols * round((cm - c00) / ncols)
+    ok = (abs(0.25 * (c00 + c10 + c01 + c11) - cm) <= 0.02
+          and abs(0.25 * (r00 + r10 + r01 + r11) - rm) <= 0.02)
+    return ok, c00, c10, c01, c11, r00, r10, r01, r11
+
+
+@njit(cache=True)
+def _warp_block(x0, y0, size, exact, c00, c10, c01, c11, r00, r10, r01, r11, pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
+                k0, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0, sky_haze_dt,
+                margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
+                tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
+                out_rgb, out_iz, out_range, out_cloud):
+    """The pixels of one size x size block of warp_kernel, their pre-image coordinates
+    interpolated from the block's corners, or each mapped exactly."""
+    inv_b = 1.0 / size
+    for y in range(y0, min(y0 + size, height)):
+        for x in range(x0, min(x0 + size, width)):
+            # The pixel centre: colour and range of the terrain.
+            sx = x + 0.5
+            sy = y + 0.5
+            c, rr = _block_point(sx, sy, exact, x0, y0, inv_b, c00, c10, c01, c11, r00,
+                                 r10, r01, r11, m, mapping, phi_lo, dphi, span, full,
+                                 theta0, dtheta)
+            c0, c1, fc = _columns(c, ncols, full)
+            r0, r1, fr = _rows(rr, nrows)
+            w00 = (1.0 - fc) * (1.0 - fr)
+            w10 = fc * (1.0 - fr)
+            w01 = (1.0 - fc) * fr
+            w11 = fc * fr
+            a00 = w00 * pre[c0, r0, PRE_A]
+            a10 = w10 * pre[c1, r0, PRE_A]
+            a01 = w01 * pre[c0, r1, PRE_A]
+            a11 = w11 * pre[c1, r1, PRE_A]
+            alpha = min(a00 + a10 + a01 + a11, 1.0)
+            ir = 0.0
+            if alpha > 0.0:
+                ir = _inverse_range(pre, c0, c1, r0, r1, w00, w10, w01, w11)
+            # Behind the terrain: the earth plane below the horizon, the sky above it,
+            # each for its share of the samples.
+            n_earth = 0
+            for s in range(s_count):
+                if kx * (x + offsets[s, 0]) + ky * (y + offsets[s, 1]) + k0 < 0.0:
+                    n_earth += 1
+            tx = (sx - mapping[1]) * inv_sxs
+            ty = (sy - mapping[3]) * inv_sys
+            ez = dz_row[0] * tx + dz_row[1] * ty + dz_row[2]  # world z of the ray
+            ray = math.sqrt(tx * tx + ty * ty + 1.0)
+            sin_el = ez / ray  # guard: ray >= 1
+            er, eg, eb = earth[0], earth[1], earth[2]
+            sr, sg, sb = sky[0], sky[1], sky[2]
+            earth_range = math.inf
+            if n_earth > 0:
+                # Guard: ez < 0 below the horizon; at it rounding may give 0 or a
+                # tiny positive: the range becomes huge, never negative.
+                earth_range = ray * height_above / max(-ez, 1e-300)
+            if haze[0] != 0.0 and alpha < 1.0:
+                # Only what the terrain leaves uncovered needs it. The sky's haze
+                # depends on elevation alone: from the per-row table.
+                if n_earth > 0:
+                    he = haze_amount(haze, earth_range, min(sin_el, -1e-9))
+                    er = er * (1.0 - he) + haze[3] * he
+                    eg = eg * (1.0 - he) + haze[4] * he
+                    eb = eb * (1.0 - he) + haze[5] * he
+                if n_earth < s_count:
+                    q0, q1, fq = _rows((theta0 + (rr + 0.5) * dtheta - sky_haze_t0)
+                                       / sky_haze_dt - 0.5, sky_haze.shape[0])
+                    hs = sky_haze[q0] + (sky_haze[q1] - sky_haze[q0]) * fq
+                    sr = sr * (1.0 - hs) + haze[3] * hs
+                    sg = sg * (1.0 - hs) + haze[4] * hs
+                    sb = sb * (1.0 - hs) + haze[5] * hs
+            fe = n_earth * inv_s
+            keep = 1.0 - alpha
+            pr = w00 * pre[c0, r0, PRE_R] + w10 * pre[c1, r0, PRE_R] + w01 * pre[c0, r1, PRE_R] + w11 * pre[c1, r1, PRE_R]
+            pg = w00 * pre[c0, r0, PRE_G] + w10 * pre[c1, r0, PRE_G] + w01 * pre[c0, r1, PRE_G] + w11 * pre[c1, r1, PRE_G]
+            pb = w00 * pre[c0, r0, PRE_B] + w10 * pre[c1, r0, PRE_B] + w01 * pre[c0, r1, PRE_B] + w11 * pre[c1, r1, PRE_B]
+            cr = pr + keep * (fe * er + (1.0 - fe) * sr)
+            cg = pg + keep * (fe * eg + (1.0 - fe) * sg)
+            cb = pb + keep * (fe * eb + (1.0 - fe) * sb)
+            nearest = earth_range if alpha < 1.0 else math.inf
+            if ir > 0.0:
+                nearest = min(nearest, 1.0 / ir)  # guard: ir > 0
+            out_range[y, x] = nearest
+            if cloud_on:
+                cr, cg, cb = _cloud_over(cloud_pre, full, c, rr, cloud_col_ratio,
+                                         cloud_row_ratio, nearest, cr, cg, cb, out_cloud,
+                                         y, x)
+            out_rgb[y, x, 0] = cr
+            out_rgb[y, x, 1] = cg
+            out_rgb[y, x, 2] = cb
+            # Per sample: the terrain's coverage and depth there (only near terrain).
+            t = (y // depth_tile) * tiles_x + x // depth_tile
+            near = (depth_need[t]
+                    and (pre[c0, r0, PRE_A] > 0.0 or pre[c1, r0, PRE_A] > 0.0
+                         or pre[c0, r1, PRE_A] > 0.0 or pre[c1, r1, PRE_A] > 0.0))
+            for s in range(s_count):
+                out_iz[y, x, s] = 0.0
+                if not near:
+                    continue
+                qx = x + offsets[s, 0]
+                qy = y + offsets[s, 1]
+                c, rr = _block_point(qx, qy, exact, x0, y0, inv_b, c00, c10, c01, c11,
+                                     r00, r10, r01, r11, m, mapping, phi_lo, dphi, span,
+                                     full, theta0, dtheta)
+                out_iz[y, x, s] = _sample_inverse_depth(
+                    pre, ncols, nrows, full, c, rr, (qx - mapping[1]) * inv_sxs,
+                    (qy - mapping[3]) * inv_sys, dz_row, margin_m)
 
 
 @njit(cache=True, inline="always")

@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from ._cloud_kernels import scan_clouds_kernel
-from ._terrain_kernels import PRE_CHANNELS, scan_kernel, warp_kernel
+from ._terrain_kernels import PRE_CHANNELS, fill_skipped, scan_kernel, warp_kernel
 from .clouds import BASE_SHADE, CLOUD_FACTOR
 from .haze import OPAQUE_TAU, beta_at, haze_amount, haze_params
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
@@ -36,6 +36,9 @@ DEFAULT_LEVEL_BIAS = 0
 
 #: Pre-image texels per output pixel along each axis, at the channel's centre of projection.
 PREIMAGE_OVERSAMPLE = 1.0
+
+#: Largest column stride (2^MAX_SKIP) towards the nadir.
+MAX_SKIP = 5
 
 #: Pixels per side of the warp's blocks (exact mapping at block corners, interpolated inside).
 WARP_BLOCK = 8
@@ -142,8 +145,24 @@ class PreimageGrid:
         d = pixel_angle / oversample
         self.nrows = max(1, math.ceil((theta1 - theta0) / d))
         self.ncols = max(1, math.ceil(span / (d / cos_max)))
+        if full:
+            # Every column stride divides a full circle of columns (scan_kernel's first_row).
+            self.ncols = -(-self.ncols // (1 << MAX_SKIP)) * (1 << MAX_SKIP)
         self.dtheta = (theta1 - theta0) / self.nrows
         self.dphi = span / self.ncols
+        # Towards the nadir a pixel spans d / cos(elevation) of azimuth: there only every
+        # 2^k-th column is needed. first_row[k]: the lowest row columns with k trailing zero
+        # bits scan (rows nearer the horizon need every column).
+        centres = theta0 + (np.arange(self.nrows) + 0.5) * self.dtheta
+        need = (d / np.maximum(np.cos(centres), 1e-9)) / self.dphi  # columns a pixel spans
+        stride_log = np.clip(np.floor(np.log2(np.maximum(need, 1.0))), 0, MAX_SKIP).astype(int)
+        stride_log[centres > 0.0] = 0  # skipping is for rows below the horizon only
+        self.first_row = np.zeros(MAX_SKIP + 1, np.int64)
+        for k in range(MAX_SKIP + 1):
+            # Rows (from the bottom) whose stride is coarser than 2^k are skipped by such
+            # columns: only the contiguous run from row 0 (strides shrink going up).
+            ok = stride_log <= k
+            self.first_row[k] = int(np.argmax(ok)) if ok.any() else self.nrows
 
 
 def preimage_grid(view: View, oversample: float = PREIMAGE_OVERSAMPLE) -> PreimageGrid:
@@ -250,8 +269,10 @@ def _scan(database: Database, view: View, grid: PreimageGrid, haze: np.ndarray, 
                 terrain.pages_x, terrain.pages_y, log2_page, level_nx, level_ny,
                 float(terrain.spacing_m), float(nx), float(ny), float(terrain.z_max), pat_top,
                 pat_rgb, pat_bands, _SRGB_LUT, eye, grid.phi_lo, grid.dphi, grid.ncols,
-                grid.theta0, grid.dtheta, grid.nrows, r_switch, r_far, haze, row_cs, top_cs, pre,
-                visits)
+                grid.theta0, grid.dtheta, grid.nrows, r_switch, r_far, haze, row_cs, top_cs,
+                grid.first_row, pre, visits)
+    if grid.first_row[0] > 0:  # some columns skipped rows
+        fill_skipped(pre, grid.first_row, grid.full)
     stats["terrain_voxels"] = int(visits.sum())
     stats["terrain_columns"] = grid.ncols
     stats["terrain_rows"] = grid.nrows
