@@ -115,7 +115,8 @@ def _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, t, cr, cg, cb):
 
 @njit(cache=True)
 def _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, ta, tb, r1, z1, r2, z2,
-          rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, cr, cg, cb):
+          rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, cr, cg, cb, ca_r, ca_g, ca_b, cb_r, cb_g,
+          cb_b):
     """Integrate the visible angular interval [a, b] of one surface segment into the rows.
 
     Each row receives the share of its height the interval covers (seed 002's colour
@@ -125,23 +126,24 @@ def _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, ta, tb,
     a and b; top_cs: cosine and sine of each row's top boundary), so a voxel spanning many
     rows is coloured like the surface, not stretched. The segment's end points (r, z relative
     to the eye) give the exact range at a row's centre (row_cs: cosine and sine of each row's
-    centre elevation). page < 0: a wall or pattern of constant colour (cr, cg, cb).
+    centre elevation). page < 0: a wall or pattern of constant colour (cr, cg, cb). ca, cb:
+    the colours at a and at b, already known to the caller.
     """
     row = int(st[_ROW])
     st[_R1] = r1
     st[_Z1] = z1
     st[_R2] = r2
     st[_Z2] = z2
-    ca_r, ca_g, ca_b = _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, ta, cr, cg, cb)
     while a < b and row < nrows:
         top = theta0 + (row + 1) * dtheta
         if b <= top:
             e = b
-            te = tb
+            ce_r, ce_g, ce_b = cb_r, cb_g, cb_b
         else:
             e = top
             te = _param_at(top_cs[row, 0], top_cs[row, 1], r1, z1, r2, z2)
-        ce_r, ce_g, ce_b = _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, te, cr, cg, cb)
+            ce_r, ce_g, ce_b = _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, te, cr,
+                                          cg, cb)
         w = (e - a) / dtheta
         st[_AR] += w * 0.5 * (ca_r + ce_r)
         st[_AG] += w * 0.5 * (ca_g + ce_g)
@@ -353,9 +355,10 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
     visits = 0
     want = 0
     level = 0
-    # The last voxel's exit elevation angle, valid while `cached`.
+    # The last voxel's exit elevation angle and colour, valid while `cached`.
     cached = False
     t_out = 0.0
+    x_r = x_g = x_b = 0.0
     d_l = spacing
     r = r_lo
     z_prev = 0.0
@@ -485,17 +488,29 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             cb = pat_rgb[k, pat_bands[k] - 1, 2]
             if lo > r_next * tan_max:
                 _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r, lo, r_next,
-                         lo, math.nan, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb)
+                         lo, math.nan, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb,
+                         cr, cg, cb)
                 tan_max = _tan_of(st[_TMAX], lo, r_next)
             z_prev = lo  # the drop back to the ground beyond is never seen from outside
         else:
             z_out = _corner_z(z_pages, page, vy, vx, u1, v1) - ez
             if z_out > r_next * tan_max or z_in > r * tan_max:
-                # Visible. The entry's elevation angle is the last voxel's exit angle where
-                # the surface runs on continuously, as it nearly always does.
+                # Visible. The entry's elevation angle and colour are the last voxel's exit
+                # ones where the surface runs on continuously, as it nearly always does.
+                if cached:
+                    t_in = t_out
+                    e_r, e_g, e_b = x_r, x_g, x_b
+                else:
+                    t_in = math.nan
+                    e_r = _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 0)
+                    e_g = _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 1)
+                    e_b = _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 2)
+                x_r = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 0)
+                x_g = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 1)
+                x_b = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 2)
                 t_out = _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r,
-                                 z_in, r_next, z_out, t_out if cached else math.nan, rgb_pages,
-                                 lut, page, vy, vx, u0, v0, u1, v1, 0.0, 0.0, 0.0)
+                                 z_in, r_next, z_out, t_in, rgb_pages, lut, page, vy, vx, u0, v0,
+                                 u1, v1, e_r, e_g, e_b, x_r, x_g, x_b)
                 tan_max = _tan_of(st[_TMAX], z_out, r_next)
                 cached = True
             else:
@@ -531,17 +546,18 @@ def _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages, lu
     a = max(a, st[_TMAX])
     if b > a:
         _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, 0.0, 1.0,
-              r, z_lo, r, z_hi, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb)
+              r, z_lo, r, z_hi, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb,
+              cr, cg, cb, cr, cg, cb)
 
 
 @njit(cache=True)
 def _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r1, z1, r2, z2, t1,
-             rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, cr, cg, cb):
+             rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, c1r, c1g, c1b, c2r, c2g, c2b):
     """The surface from (r1, z1) to (r2, z2): the part rising above the current horizon.
 
     t1: elevation angle of (r1, z1) if known (NaN: computed here). Returns that of (r2, z2).
-    Colour: the voxel's bilinear colours from local point (u0, v0) to (u1, v1), or constant
-    (cr, cg, cb) if page < 0.
+    Colour: the voxel's bilinear colours from local point (u0, v0) (colour c1) to (u1, v1)
+    (colour c2), or constant c1 if page < 0.
     """
     if math.isnan(t1):
         t1 = math.atan2(z1, r1)
@@ -562,13 +578,19 @@ def _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r1, z1, r2
     if hi <= tmax:
         return t_far
     a = lo
-    ta = t_lo
+    if t_lo == 0.0:
+        ca_r, ca_g, ca_b, cb_r, cb_g, cb_b = c1r, c1g, c1b, c2r, c2g, c2b
+    else:
+        ca_r, ca_g, ca_b, cb_r, cb_g, cb_b = c2r, c2g, c2b, c1r, c1g, c1b
     if a < tmax:
-        # Only the part above the horizon, from where it emerges.
+        # Only the part above the horizon, from where it emerges (its colour there).
         a = tmax
         ta = _param_at(math.cos(tmax), math.sin(tmax), r1, z1, r2, z2)
-    _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, hi, ta, t_hi,
-          r1, z1, r2, z2, rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, cr, cg, cb)
+        ca_r, ca_g, ca_b = _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, ta, c1r, c1g,
+                                      c1b)
+    _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, hi, 0.0, t_hi,
+          r1, z1, r2, z2, rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, c1r, c1g, c1b,
+          ca_r, ca_g, ca_b, cb_r, cb_g, cb_b)
     return t_far
 
 

@@ -165,13 +165,16 @@ class PreimageGrid:
             self.first_row[k] = int(np.argmax(ok)) if ok.any() else self.nrows
 
 
-def preimage_grid(view: View, oversample: float = PREIMAGE_OVERSAMPLE) -> PreimageGrid:
+def preimage_grid(view: View, oversample: float | None = None) -> PreimageGrid:
     """The azimuth and elevation range a view covers and the pre-image resolution it needs.
 
     Azimuth and elevation have no extremum inside the frustum except at the poles, so the
     frustum's border (sampled densely) and whether it holds the nadir or zenith give both
-    ranges; the border's winding about the vertical tells if a pole is inside.
+    ranges; the border's winding about the vertical tells if a pole is inside. oversample:
+    texels per pixel at the centre of projection (None: PREIMAGE_OVERSAMPLE, read at the call).
     """
+    if oversample is None:
+        oversample = PREIMAGE_OVERSAMPLE
     n = 257
     t = np.linspace(0.0, 1.0, n)
     tl, tr, tb, tt = view.tan_left, view.tan_right, view.tan_bottom, view.tan_top
