@@ -18,6 +18,7 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest
 
+# bench_terrain.py builds its 4096^2-voxel terrain on first use (cached, ~40 s, ~5 GB peak).
 # bench_visibility.py compares with Mesa's llvmpipe: moderngl comes with the [bench] extra, Mesa's
 # EGL and software rasterizer are Debian packages, installed here if missing (as root).
 bench: $(STAMP)
@@ -27,6 +28,7 @@ bench: $(STAMP)
 	  || echo "bench: no Mesa EGL; bench_visibility.py will report llvmpipe as unavailable"
 	$(PY) bench/bench_render.py
 	$(PY) bench/bench_visibility.py
+	$(PY) bench/bench_terrain.py
 
 # Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.
 proto: $(STAMP)

@@ -1,0 +1,915 @@
+"""The terrain stage (seed 002) on one core: frame time and voxels visited against pitch and
+altitude, what haze and clouds cost, and speed against error for the level bias and the
+pre-image resolution (bench/README.md).
+
+    python bench/bench_terrain.py                 # what `make bench` runs (8-9 minutes)
+    python bench/bench_terrain.py --repeats 9     # steadier medians on a busy machine
+    python bench/bench_terrain.py --quick         # smoke run (1 minute); not a measurement
+    python bench/bench_terrain.py --replot        # redraw terrain.png from terrain.json
+
+1. Sweep: a 4096 x 4096-voxel, 3 m procedural database (bench/scenes/terrain.py, cached after
+   its first build) seen from 50 to 4000 m above the ground under the eye at pitches -90 to 0
+   degrees (heading 45, roll 0), 1280 x 1024, 60 degrees across, 4 samples: per cell the time
+   of render_terrain called alone, of the terrain stage inside render_frame and of the whole
+   frame (a scene of terrain only), and the voxels visited.
+2. The bundled Jacksboro terrain in the demo scene (terrain, haze, clouds, the airfield's
+   polygons), centre channel, along the bundled flight.
+3. The stage split into column scan, cloud scan and warp, with and without haze and clouds;
+   the flat airfield (no terrain, no haze) with and without haze and clouds, to show that a
+   scene without them skips the stage.
+4. The level window each level bias really selects (a flat database coloured by level).
+5. Speed against error for level_bias in (-1, 0, 1, 2) and pre-image oversampling in (0.75, 1,
+   1.5, 2): stage time at 1280 x 1024 against the error of that same render, on every 4th
+   pixel each way, against the exact ray-cast reference
+   (channel_worker/testing/terrain_reference.py), on four views.
+
+Everything runs pinned to one CPU with numba on one thread, after a warm-up (numba compiles on
+the first call). Writes bench/results/terrain.json (the record) and bench/results/terrain.png
+(four panels; not checked in).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import datetime as dt
+import json
+import math
+import os
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+# Runnable from a plain checkout too (`python bench/bench_terrain.py` puts bench/ first).
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+RESULTS = Path(__file__).resolve().parent / "results"
+#: The issue's channel: 1280 x 1024, 60 degrees across, square pixels, 4 samples (rgss4).
+WIDTH, HEIGHT, FOV_H_DEG, SAMPLES = 1280, 1024, 60.0, "rgss4"
+PITCHES_DEG = (-90, -60, -45, -30, -20, -10, -5, 0)
+ALTITUDES_M = (50, 200, 1000, 4000)
+HEADING_DEG = 45.0
+#: The sweep's eye: 30 % of the database's width in from its south-west corner, looking
+#: north-east along the diagonal (up to 12 km of terrain ahead; the nadir footprint from 4 km
+#: up stays on the database).
+EYE_FRACTION = 0.3
+#: Bundled flight points: take-off roll, rotation, climbing turn, descent (as bench_render);
+#: the stage split with and without haze and clouds at the first and the last.
+FLIGHT_TIMES_S = (2.0, 8.0, 14.0, 20.0)
+SPLIT_TIMES_S = (2.0, 20.0)
+#: (altitude m, pitch deg, with the haze and cloud variants) views of the fractal database
+#: for the stage split.
+SPLIT_VIEWS = ((50, -90, False), (200, -10, True), (4000, -90, False))
+BIASES = (-1, 0, 1, 2)
+OVERSAMPLES = (0.75, 1.0, 1.5, 2.0)
+#: The error is measured on every ERROR_STRIDE-th pixel each way of the full-size render (320 x
+#: 256 pixels: the reference is slow, ~50 us per ray on one core here), on these views.
+ERROR_STRIDE = 4
+ERROR_VIEWS = ((50, -5), (200, -20), (1000, -30), (4000, -45))
+#: Sky and earth share one grey in the error scene, so a sample that misses the terrain has
+#: the same colour in the renderer (sky or earth plane) as in the reference (one background).
+GREY = "#808080"
+#: Haze and clouds of the demo scene (channel_worker/data/airfield_terrain.json); the clouds'
+#: extent is set to the fractal database's.
+HAZE = {"visibility_m": 30000.0, "scale_height_m": 1500.0, "base_height_m": 0.0,
+        "colour": "#c4ccd6"}
+CLOUDS = {"cell_m": 400.0, "base_m": 1100.0, "thickness_m": 700.0, "cover": 0.3,
+          "extinction_per_m": 0.02, "colour": "#f4f6fa", "seed": 7}
+QUICK = {"repeats": 1, "pitches": (-90, -20, 0), "altitudes": (200, 4000),
+         "flight": (2.0, 20.0), "biases": (-1, 0, 2), "oversamples": (1.0, 2.0),
+         "error_stride": 8, "error_views": ((200, -20),), "split_views": ((200, -10, True),)}
+
+
+class Progress:
+    """Progress lines on stderr with the seconds since the start."""
+
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+
+    def __call__(self, message: str) -> None:
+        print(f"[{time.perf_counter() - self.t0:6.1f} s] {message}", file=sys.stderr, flush=True)
+
+    @property
+    def seconds(self) -> float:
+        return time.perf_counter() - self.t0
+
+
+def median_ms(values: list[float]) -> float:
+    return 1e3 * statistics.median(values)
+
+
+def timed(fn: Callable[[], Any], repeats: int, *, warm: bool = True) -> tuple[list[float], Any]:
+    """Call fn once to warm up (unless warm is False), then `repeats` times; every timed call's
+    seconds and the last result."""
+    out = fn() if warm else None
+    walls = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        walls.append(time.perf_counter() - t0)
+    return walls, out
+
+
+def git_state() -> dict[str, Any]:
+    """The commit measured and the tracked files that differ from it."""
+    def run(*cmd: str) -> str | None:
+        try:
+            return subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, check=True,
+                                  timeout=10).stdout
+        except (OSError, subprocess.SubprocessError):
+            return None
+    commit = run("git", "rev-parse", "HEAD")
+    status = run("git", "status", "--porcelain", "--untracked-files=no")
+    return {"commit": commit.strip() if commit else None,
+            "modified": None if status is None else [line[3:] for line in status.splitlines()]}
+
+
+@contextlib.contextmanager
+def preimage_oversample(value: float) -> Iterator[None]:
+    """Render with PREIMAGE_OVERSAMPLE = value: the function render_terrain calls is replaced
+    for the duration. (Up to 95de649 setting the module constant did nothing, preimage_grid's
+    default argument having been bound at import; this works before and after.)"""
+    from channel_worker.pipeline import terrain
+
+    original = terrain.preimage_grid
+
+    def grid(view, oversample: float = value):
+        return original(view, oversample)
+
+    terrain.preimage_grid = grid
+    try:
+        yield
+    finally:
+        terrain.preimage_grid = original
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; returns the process exit status."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--repeats", type=int, default=None,
+                        help="timed calls per case after one warm-up; the median is kept "
+                             "(default 5; the bias grid 3; --quick 1)")
+    parser.add_argument("--quick", action="store_true",
+                        help="fewer cells, settings and views, a 160 x 128 error raster, one "
+                             "repeat: checks the bench runs; not a measurement")
+    parser.add_argument("--cpu", type=int, default=None,
+                        help="the CPU to run on (default: the lowest this process may use)")
+    parser.add_argument("--out", type=Path, default=RESULTS,
+                        help=f"results folder (default {RESULTS})")
+    parser.add_argument("--replot", action="store_true",
+                        help="only redraw terrain.png (and reprint the tables) from terrain.json")
+    args = parser.parse_args(argv)
+    if args.replot:
+        record = json.loads((args.out / "terrain.json").read_text(encoding="utf-8"))
+        print_report(record)
+        plot(record, args.out / "terrain.png")
+        return 0
+    quick = args.quick
+    repeats = args.repeats if args.repeats is not None else (QUICK["repeats"] if quick else 5)
+    if repeats < 1:
+        parser.error("--repeats must be at least 1")
+    bias_repeats = args.repeats if args.repeats is not None else (1 if quick else 3)
+
+    from bench_visibility import pin_to_one_cpu  # bench/ is on the path when run as a script
+
+    cpu = pin_to_one_cpu(args.cpu)  # before numba starts its threads
+    import numba
+
+    numba.set_num_threads(1)
+    from bench_render import machine
+
+    progress = Progress()
+    record: dict[str, Any] = {
+        "benchmark": "terrain stage (seed 002), one core: time and voxels against pitch and "
+                     "altitude, options, speed against error for level bias and pre-image "
+                     "resolution",
+        "date": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        "machine": machine(),
+        "git": git_state(),
+        "one_core": {"cpu": cpu, "affinity": sorted(os.sched_getaffinity(0))
+                     if hasattr(os, "sched_getaffinity") else None,
+                     "numba_threads": numba.get_num_threads()},
+        "quick": quick,
+        "repeats": repeats,
+        "statistic": "medians over the repeats, after one warm-up call. render_terrain_ms: "
+                     "wall time of render_terrain called alone (per-sample depth everywhere, "
+                     "depth_tiles=None); terrain_ms: StageTimes['terrain'] inside render_frame "
+                     "(per-sample depth only in sub-areas holding polygons); frame_ms: wall "
+                     "time of render_frame",
+    }
+    sweep(record, quick, repeats, progress)
+    bundled(record, quick, repeats, progress)
+    no_terrain(record, repeats, progress)
+    level_window(record, progress)
+    bias_grid(record, quick, bias_repeats, progress)
+    record["machine"]["load_average_1min_at_end"] = (os.getloadavg()[0]
+                                                     if hasattr(os, "getloadavg") else None)
+    record["seconds"] = progress.seconds
+
+    print_report(record)
+    args.out.mkdir(parents=True, exist_ok=True)
+    json_path = args.out / "terrain.json"
+    json_path.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+    written = [json_path]
+    fig = args.out / "terrain.png"
+    if plot(record, fig):
+        written.append(fig)
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+# --- 1. the sweep -----------------------------------------------------------------------------
+
+def sweep_channel(width: int = WIDTH, height: int = HEIGHT):
+    """The issue's channel: width x height, FOV_H_DEG across, square pixels."""
+    from channel_worker.pipeline.types import ChannelSpec
+
+    half_v = math.degrees(math.atan(math.tan(math.radians(0.5 * FOV_H_DEG)) * height / width))
+    return ChannelSpec("bench", width, height, -0.5 * FOV_H_DEG, 0.5 * FOV_H_DEG, -half_v, half_v)
+
+
+def sweep_eye_xy(terrain) -> tuple[float, float]:
+    ex, ey = terrain.extent_m
+    return (float(terrain.origin[0]) + EYE_FRACTION * ex,
+            float(terrain.origin[1]) + EYE_FRACTION * ey)
+
+
+def frame_case(database, channel, eyepoint, repeats: int, *, alone: bool = False) -> dict:
+    """Time render_frame as a channel worker calls it (colour only, into a reused buffer) and,
+    with alone, render_terrain called by itself (per-sample depth everywhere), alternating the
+    two in every repetition so that a busy moment of the machine falls on both alike."""
+    from channel_worker.pipeline.geometry import make_view
+    from channel_worker.pipeline.render import render_frame
+    from channel_worker.pipeline.samples import sample_pattern
+    from channel_worker.pipeline.terrain import render_terrain
+    from channel_worker.pipeline.types import StageTimes
+
+    out = np.empty((channel.height, channel.width, 3), np.float32)
+    view = make_view(channel, eyepoint)
+    offsets = sample_pattern(SAMPLES)
+    runs: list[StageTimes] = []
+    walls: list[float] = []
+    alone_walls: list[float] = []
+    stats: dict[str, int] = {}
+    for k in range(repeats + 1):  # the first is the warm-up: numba compiles, pages are read
+        times = StageTimes()
+        stats.clear()
+        t0 = time.perf_counter()
+        render_frame(database, channel, eyepoint, samples=SAMPLES, with_range=False, out=out,
+                     times=times, stats=stats)
+        t1 = time.perf_counter()
+        if alone:
+            render_terrain(database, view, offsets)
+        t2 = time.perf_counter()
+        if k:
+            runs.append(times)
+            walls.append(t1 - t0)
+            alone_walls.append(t2 - t1)
+    if not runs:
+        return {}
+    stages = list(runs[0].seconds)
+    return {
+        "terrain_ms": (median_ms([r.seconds["terrain"] for r in runs])
+                       if "terrain" in runs[0].seconds else None),
+        "render_terrain_ms": median_ms(alone_walls) if alone else None,
+        "frame_ms": median_ms(walls),
+        "frame_min_ms": 1e3 * min(walls),
+        "render_terrain_min_ms": 1e3 * min(alone_walls) if alone else None,
+        "render_terrain_ms_all": [1e3 * w for w in alone_walls] if alone else None,
+        "frame_ms_all": [1e3 * w for w in walls],
+        "terrain_ms_all": [1e3 * r.seconds.get("terrain", math.nan) for r in runs],
+        "stages_ms": {s: median_ms([r.seconds[s] for r in runs]) for s in stages},
+        "voxels": stats.get("terrain_voxels"),
+        "columns": stats.get("terrain_columns"),
+        "rows": stats.get("terrain_rows"),
+        "eye_clamped": stats.get("terrain_eye_clamped"),
+    }
+
+
+def sweep(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
+    from bench.scenes.terrain import (
+        FRACTAL_RECIPE,
+        describe,
+        eyepoint_above,
+        fractal_terrain,
+        terrain_scene,
+    )
+
+    progress("loading (building on first use) the 4096^2-voxel bench terrain")
+    terrain = fractal_terrain()
+    database = terrain_scene(terrain)
+    channel = sweep_channel()
+    x, y = sweep_eye_xy(terrain)
+    pitches = QUICK["pitches"] if quick else PITCHES_DEG
+    altitudes = QUICK["altitudes"] if quick else ALTITUDES_M
+    pixel_rad = math.radians(FOV_H_DEG) / WIDTH
+    record["fractal_terrain"] = {"generator": "bench/scenes/terrain.py", "recipe": FRACTAL_RECIPE,
+                                 **describe(terrain)}
+    record["sweep_settings"] = {
+        "channel": {"width": WIDTH, "height": HEIGHT, "frustum_deg": [
+            channel.left_deg, channel.right_deg, channel.bottom_deg, channel.top_deg]},
+        "samples": SAMPLES, "eye_xy_m": [x, y], "heading_deg": HEADING_DEG, "roll_deg": 0.0,
+        "altitudes_agl_m": list(altitudes), "pitches_deg": list(pitches),
+        "scene": "terrain only: no polygons, no haze, no clouds", "level_bias": 0,
+        "render_options": {"with_range": False, "out_buffer_reused": True, "filter": "box"},
+        "pixel_angle_rad": pixel_rad,
+    }
+    progress("sweep: warm-up (numba compiles on the first call)")
+    frame_case(database, channel, eyepoint_above(terrain, x, y, 200.0, heading_deg=HEADING_DEG,
+                                                 pitch_deg=-20.0), 0)
+    rows = []
+    for agl in altitudes:
+        for pitch in pitches:
+            eye = eyepoint_above(terrain, x, y, float(agl), heading_deg=HEADING_DEG,
+                                 pitch_deg=float(pitch))
+            case = frame_case(database, channel, eye, repeats, alone=True)
+            ground = float(eye.position[2]) - agl
+            rows.append({"altitude_agl_m": agl, "pitch_deg": pitch, "eye_z_m": float(eye.position[2]),
+                         "ground_z_m": ground,
+                         # Width of a level-0 voxel, in pixels, straight below the eye.
+                         "level0_voxel_px_at_nadir": terrain.spacing_m / (agl * pixel_rad),
+                         **case})
+            progress(f"sweep {agl:5d} m {pitch:4d} deg: render_terrain "
+                     f"{case['render_terrain_ms']:6.1f} ms, in the frame {case['terrain_ms']:6.1f}"
+                     f" ms, frame {case['frame_ms']:6.1f} ms, {case['voxels']:9,d} voxels")
+    record["sweep"] = rows
+    record["sweep_check"] = check_seed(rows, altitudes, pitches)
+    spread = sorted(max(r["frame_ms_all"]) / min(r["frame_ms_all"]) for r in rows)
+    record["sweep_noise"] = {"what": "slowest / fastest of each cell's repeated frames",
+                             "median": spread[len(spread) // 2], "worst": spread[-1]}
+
+
+def check_seed(rows: list[dict], altitudes, pitches) -> dict[str, Any]:
+    """Does the seed's expectation hold: voxels visited about constant with altitude (range),
+    growing as the pitch gets shallower?"""
+    vox = {(r["altitude_agl_m"], r["pitch_deg"]): r["voxels"] for r in rows}
+    by_pitch = {}
+    for p in pitches:
+        v = [vox[(a, p)] for a in altitudes]
+        by_pitch[str(p)] = {"min": min(v), "max": max(v),
+                            "max_over_min": max(v) / max(min(v), 1),
+                            "highest_over_lowest_altitude": v[-1] / max(v[0], 1)}
+    by_alt = {}
+    for a in altitudes:
+        v = [vox[(a, p)] for p in pitches]  # steepest first
+        drops = [f"{pitches[i]} -> {pitches[i + 1]} deg: {v[i]:,} -> {v[i + 1]:,}"
+                 for i in range(len(v) - 1) if v[i + 1] < 0.9 * v[i]]
+        by_alt[str(a)] = {"voxels_steepest_to_shallowest": v,
+                          "shallowest_over_steepest": v[-1] / max(v[0], 1),
+                          "peak_pitch_deg": pitches[int(np.argmax(v))],
+                          "drops_over_10_percent": drops}
+    constant = all(d["max_over_min"] <= 2.0 for d in by_pitch.values())
+    growing = all(not d["drops_over_10_percent"] for d in by_alt.values())
+    return {"voxels_by_pitch_over_altitudes": by_pitch, "voxels_by_altitude_over_pitch": by_alt,
+            "constant_with_altitude": constant, "criterion_constant": "max / min over the "
+            "altitudes at most 2 at every pitch", "grows_as_pitch_gets_shallower": growing,
+            "criterion_grows": "no step from a steeper to a shallower pitch loses more than "
+            "10 % of the voxels, at every altitude"}
+
+
+# --- 2. the bundled terrain ------------------------------------------------------------------
+
+def bundled(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
+    from bench.scenes.terrain import describe
+    from channel_worker.pipeline.geometry import make_view
+    from channel_worker.pipeline.samples import sample_pattern
+    from channel_worker.pipeline.scene import demo_scene_path, load_scene
+    from host_sim.flight import bundled_flight
+    from services.rig import default_rig_path, load_rig
+
+    progress("bundled terrain: loading the demo scene (builds the terrain on first use)")
+    demo = load_scene(demo_scene_path())
+    channel = load_rig(default_rig_path()).with_size(WIDTH, HEIGHT).channels[1].spec
+    flight = bundled_flight()
+    offsets = sample_pattern(SAMPLES)
+    times_s = QUICK["flight"] if quick else FLIGHT_TIMES_S
+    variants = {"terrain+haze+clouds (demo)": demo,
+                "terrain+haze": dataclasses.replace(demo, clouds=None),
+                "terrain+clouds": dataclasses.replace(demo, haze=None),
+                "terrain": dataclasses.replace(demo, haze=None, clouds=None)}
+    points, split = [], []
+    for t in times_s:
+        eye = flight.eyepoint_at(t)
+        case = frame_case(demo, channel, eye, repeats)
+        points.append({"t_s": t, "position_m": [float(v) for v in eye.position],
+                       "hpr_deg": [eye.heading_deg, eye.pitch_deg, eye.roll_deg], **case})
+        view = make_view(channel, eye)
+        for name, db in variants.items() if t in SPLIT_TIMES_S else ():
+            split.append({"scene": "demo (Jacksboro)", "view": f"flight t={t:g} s",
+                          "variant": name, **stage_split(db, view, offsets, repeats)})
+        progress(f"bundled t={t:4.1f} s: terrain {case['terrain_ms']:6.1f} ms, frame "
+                 f"{case['frame_ms']:6.1f} ms, {case['voxels']:,} voxels")
+    record["bundled"] = {"scene": "channel_worker/data/airfield_terrain.json (demo_scene_path)",
+                         "terrain": describe(demo.terrain),
+                         "channel": {"name": channel.name, "width": channel.width,
+                                     "height": channel.height, "frustum_deg": [
+                                         channel.left_deg, channel.right_deg, channel.bottom_deg,
+                                         channel.top_deg]},
+                         "samples": SAMPLES, "points": points}
+
+    # The stage split on the fractal database too.
+    from bench.scenes.terrain import eyepoint_above, fractal_terrain, terrain_scene
+
+    terrain = fractal_terrain()
+    ex, ey = terrain.extent_m
+    clouds = dict(CLOUDS, extent_m=[float(terrain.origin[0]), float(terrain.origin[1]),
+                                    float(terrain.origin[0]) + ex, float(terrain.origin[1]) + ey])
+    full = terrain_scene(terrain, haze=HAZE, clouds=clouds)
+    fractal_variants = {"terrain+haze+clouds": full,
+                        "terrain+haze": dataclasses.replace(full, clouds=None),
+                        "terrain+clouds": dataclasses.replace(full, haze=None),
+                        "terrain": dataclasses.replace(full, haze=None, clouds=None)}
+    x, y = sweep_eye_xy(terrain)
+    for agl, pitch, all_variants in QUICK["split_views"] if quick else SPLIT_VIEWS:
+        view = make_view(sweep_channel(), eyepoint_above(terrain, x, y, float(agl),
+                                                         heading_deg=HEADING_DEG,
+                                                         pitch_deg=float(pitch)))
+        for name, db in fractal_variants.items():
+            if not all_variants and name != "terrain":
+                continue
+            split.append({"scene": "fractal", "view": f"{agl} m, pitch {pitch}", "variant": name,
+                          **stage_split(db, view, offsets, repeats)})
+        progress(f"stage split, fractal {agl} m pitch {pitch}: done")
+    record["stage_split"] = {
+        "method": "terrain._scan (column scan), terrain._scan_clouds (cloud scan) and "
+                  "terrain.render_terrain (the whole stage) timed one after the other in each "
+                  "repetition; medians over the repetitions; warp_ms = median of total - scan - "
+                  "clouds (the warp plus grid set-up, sky haze table and allocation)",
+        "haze": HAZE, "clouds": CLOUDS, "rows": split}
+
+
+def stage_split(database, view, offsets: np.ndarray, repeats: int) -> dict[str, Any]:
+    """Scan, cloud scan and the rest (warp) of one render_terrain, in milliseconds.
+
+    Each repetition times the column scan, the cloud scan and the whole stage one after the
+    other, so that a busy moment of the machine falls on all three alike; the warp is the
+    median of the per-repetition remainders."""
+    from channel_worker.pipeline import terrain as T
+    from channel_worker.pipeline.haze import haze_params
+
+    grid = T.preimage_grid(view)
+    haze = haze_params(database.haze, float(view.eye[2]))
+    stats: dict[str, int] = {}
+    scans, clouds, totals = [], [], []
+    background = None
+    for k in range(repeats + 1):  # the first is the warm-up
+        t0 = time.perf_counter()
+        if database.terrain is not None:
+            T._scan(database, view, grid, haze, T.DEFAULT_LEVEL_BIAS, stats)
+        t1 = time.perf_counter()
+        if database.clouds is not None:
+            T._scan_clouds(database, view, grid, haze)
+        t2 = time.perf_counter()
+        background = T.render_terrain(database, view, offsets)
+        t3 = time.perf_counter()
+        if k:
+            scans.append(t1 - t0)
+            clouds.append(t2 - t1)
+            totals.append(t3 - t2)
+    warps = [max(t - a - b, 0.0) for t, a, b in zip(totals, scans, clouds, strict=True)]
+    return {"scan_ms": median_ms(scans), "clouds_ms": median_ms(clouds),
+            "warp_ms": median_ms(warps), "total_ms": median_ms(totals),
+            "voxels": background.stats.get("terrain_voxels") if background is not None else None}
+
+
+# --- 3. a scene without terrain --------------------------------------------------------------
+
+def no_terrain(record: dict, repeats: int, progress: Progress) -> None:
+    """The flat airfield (no terrain, no haze) skips the stage; haze or clouds alone run it."""
+    from channel_worker.pipeline import terrain as T
+    from channel_worker.pipeline.geometry import make_view
+    from channel_worker.pipeline.samples import sample_pattern
+    from channel_worker.pipeline.scene import (
+        bundled_scene_path,
+        demo_scene_path,
+        load_scene,
+    )
+    from host_sim.flight import bundled_flight
+    from services.rig import default_rig_path, load_rig
+
+    flat = load_scene(bundled_scene_path())
+    demo = load_scene(demo_scene_path())
+    channel = load_rig(default_rig_path()).with_size(WIDTH, HEIGHT).channels[1].spec
+    eye = bundled_flight().eyepoint_at(20.0)
+    variants = {"airfield (no terrain, no haze)": flat,
+                "airfield + haze": dataclasses.replace(flat, haze=demo.haze),
+                "airfield + haze + clouds": dataclasses.replace(flat, haze=demo.haze,
+                                                                clouds=demo.clouds),
+                "airfield on terrain + haze + clouds (demo)": demo}
+    rows = []
+    for name, db in variants.items():
+        case = frame_case(db, channel, eye, max(repeats, 5))
+        rows.append({"scene": name, "terrain_stage_run": case["terrain_ms"] is not None, **case})
+    # What deciding to skip costs: render_terrain on the flat scene returns None at once.
+    view = make_view(channel, eye)
+    offsets = sample_pattern(SAMPLES)
+    walls, result = timed(lambda: T.render_terrain(flat, view, offsets), 1000)
+    record["no_terrain"] = {
+        "eyepoint": "bundled flight t = 20 s", "channel": channel.name, "samples": SAMPLES,
+        "rows": rows,
+        "render_terrain_on_flat_scene": {"returns_none": result is None,
+                                         "median_us": 1e6 * statistics.median(walls)}}
+    progress("flat airfield with and without haze and clouds: done")
+
+
+# --- 4. the level window ---------------------------------------------------------------------
+
+#: sRGB red of each level of the probe database (green and blue 0).
+LEVEL_RED = (40, 90, 130, 165, 195, 220, 240, 255)
+
+
+def level_probe_database(n: int = 8192, spacing: float = 1.0, page_size: int = 64):
+    """A flat database whose level L is coloured (LEVEL_RED[L], 0, 0); every page of a level is
+    one stored page, so it costs a few pages."""
+    from channel_worker.terrain.database import TerrainDatabase, page_layout
+
+    pages_x, pages_y, table_offset = page_layout(n, n, page_size)
+    levels = len(pages_x)
+    z = np.zeros((levels, page_size, page_size, 4), np.float32)
+    rgb = np.zeros((levels, page_size, page_size, 4, 3), np.uint8)
+    table = np.empty(int((pages_x * pages_y).sum()), np.int32)
+    for lv in range(levels):
+        rgb[lv, ..., 0] = LEVEL_RED[lv]
+        count = int(pages_x[lv] * pages_y[lv])
+        table[table_offset[lv]:table_offset[lv] + count] = lv
+    return TerrainDatabase(
+        spacing_m=spacing, origin=np.array([-0.5 * n * spacing, -0.5 * n * spacing, 0.0]), nx=n,
+        ny=n, page_size=page_size, levels=levels, pages_x=pages_x, pages_y=pages_y,
+        table_offset=table_offset, page_table=table, z=z, rgb=rgb,
+        pattern=np.zeros((levels, page_size, page_size), np.uint8), z_min=0.0, z_max=0.0,
+        source="<bench level probe>")
+
+
+def level_window(record: dict, progress: Progress) -> None:
+    """Which level each bias draws straight below the eye, as the eye climbs: the measured
+    window of voxel widths in pixels (docs/terrain.md: 2**bias to 2**(bias + 1))."""
+    from bench.scenes.terrain import terrain_scene
+    from channel_worker.pipeline.geometry import make_view
+    from channel_worker.pipeline.terrain import _SRGB_LUT, render_terrain
+    from channel_worker.pipeline.types import ChannelSpec, Eyepoint
+
+    probe = level_probe_database()
+    database = terrain_scene(probe)
+    # A 64 x 64 channel with the sweep's pixel angle (60 / 1280 degrees): the level choice
+    # depends only on the angle of a pixel.
+    pixel_rad = math.radians(FOV_H_DEG) / WIDTH
+    half = 0.5 * 64 * math.degrees(pixel_rad)
+    channel = ChannelSpec("probe", 64, 64, -half, half, -half, half)
+    reds = _SRGB_LUT[np.array(LEVEL_RED[:probe.levels])]
+    centre = np.array([[0.5, 0.5]])
+    rows = []
+    for bias in BIASES:
+        seen = []
+        for k in range(12, -25, -1):  # level-0 voxel from 8 px down to 1/64 px, quarter octaves
+            level0_px = 2.0 ** (k / 4.0)
+            agl = probe.spacing_m / (level0_px * pixel_rad)
+            eye = Eyepoint(position=np.array([0.0, 0.0, agl]), heading_deg=0.0, pitch_deg=-90.0,
+                           roll_deg=0.0)
+            bg = render_terrain(database, make_view(channel, eye), centre, level_bias=bias)
+            level = int(np.argmin(np.abs(reds - bg.rgb[32, 32, 0])))
+            seen.append({"altitude_m": agl, "level0_voxel_px": level0_px, "level": level,
+                         "voxel_px": level0_px * 2 ** level})
+        # Where a coarser level exists and a finer one was possible, the choice is the window's.
+        free = [s["voxel_px"] for s in seen if 0 < s["level"] < probe.levels - 1]
+        rows.append({"bias": bias, "voxel_px_min": min(free) if free else None,
+                     "voxel_px_max": max(free) if free else None,
+                     "documented_px": [2.0 ** bias, 2.0 ** (bias + 1)], "samples": seen})
+    record["level_window"] = {
+        "method": "flat database, level L coloured (LEVEL_RED[L], 0, 0); a nadir view's centre "
+                  "pixel at 37 heights (level-0 voxel 8 px to 1/64 px wide, quarter octaves), "
+                  "pixel angle 60/1280 degrees; voxel_px_min/max over the heights where the "
+                  "level drawn is neither the finest nor the coarsest",
+        "rows": rows}
+    progress("level window per bias: " + ", ".join(
+        f"bias {r['bias']}: {r['voxel_px_min']}-{r['voxel_px_max']} px" for r in rows))
+
+
+# --- 5. speed against error ------------------------------------------------------------------
+
+def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
+    from bench.scenes.terrain import eyepoint_above, fractal_terrain, terrain_scene
+    from channel_worker.pipeline import terrain as T
+    from channel_worker.pipeline.geometry import make_view
+    from channel_worker.pipeline.samples import sample_pattern
+
+    terrain = fractal_terrain()
+    database = terrain_scene(terrain, sky=GREY, earth=GREY)
+    background = database.sky_colour.astype(np.float64)
+    x, y = sweep_eye_xy(terrain)
+    stride = QUICK["error_stride"] if quick else ERROR_STRIDE
+    views = QUICK["error_views"] if quick else ERROR_VIEWS
+    biases = QUICK["biases"] if quick else BIASES
+    oversamples = QUICK["oversamples"] if quick else OVERSAMPLES
+    rgss4 = sample_pattern(SAMPLES)
+    centre = np.array([[0.5, 0.5]])
+    both = np.concatenate([rgss4, centre])  # the reference traces these five per pixel
+
+    # Does setting the module constant change the pre-image? (It does not: see
+    # preimage_oversample.)
+    probe_view = make_view(sweep_channel(), eyepoint_above(terrain, x, y, 200.0,
+                                                          heading_deg=HEADING_DEG, pitch_deg=-20.0))
+    before = T.preimage_grid(probe_view).ncols
+    saved, T.PREIMAGE_OVERSAMPLE = T.PREIMAGE_OVERSAMPLE, 2.0
+    constant_patch_effective = T.preimage_grid(probe_view).ncols != before
+    T.PREIMAGE_OVERSAMPLE = saved
+
+    cases = []
+    for agl, pitch in views:
+        eye = eyepoint_above(terrain, x, y, float(agl), heading_deg=HEADING_DEG,
+                             pitch_deg=float(pitch))
+        view = make_view(sweep_channel(), eye)
+        T.render_terrain(database, view, rgss4)  # warm-up: the view's pages are read
+        t0 = time.perf_counter()
+        ref = reference_subset(terrain, view, both, stride)
+        cases.append({"agl": agl, "pitch": pitch, "view": view, **ref,
+                      "ref_rgb": np.where(ref["hit"][..., None], ref["rgb"],
+                                          background).mean(axis=2),
+                      "ref_hit4": ref["hit"][..., :len(rgss4)],
+                      "ref_seconds": time.perf_counter() - t0})
+        progress(f"reference: {ref['hit'].shape[1]} x {ref['hit'].shape[0]} pixels x "
+                 f"{len(both)} rays, {agl} m pitch {pitch}: {cases[-1]['ref_seconds']:.1f} s")
+    rows = []
+    for bias in biases:
+        for over in oversamples:
+            per_view = []
+            with preimage_oversample(over):
+                for c in cases:
+                    walls, bg = timed(lambda c=c, b=bias: T.render_terrain(
+                        database, c["view"], rgss4, level_bias=b), repeats, warm=False)
+                    bgc = T.render_terrain(database, c["view"], centre, level_bias=bias)
+                    per_view.append({"altitude_agl_m": c["agl"], "pitch_deg": c["pitch"],
+                                     "terrain_ms": median_ms(walls),
+                                     "terrain_ms_all": [1e3 * w for w in walls],
+                                     "voxels": bg.stats["terrain_voxels"],
+                                     "columns": bg.stats["terrain_columns"],
+                                     "rows": bg.stats["terrain_rows"],
+                                     **subset_error(bg, bgc, c)})
+            row = {"level_bias": bias, "preimage_oversample": over,
+                   "terrain_ms": float(np.mean([v["terrain_ms"] for v in per_view])),
+                   "voxels": int(np.mean([v["voxels"] for v in per_view]))}
+            for key in ("colour_mean", "colour_p99", "coverage_disagree", "range_median",
+                        "range_p95"):
+                row[key] = float(np.mean([v[key] for v in per_view]))
+            row["views"] = per_view
+            rows.append(row)
+            progress(f"bias {bias:2d} oversample {over:4.2f}: {row['terrain_ms']:6.1f} ms, "
+                     f"colour error {row['colour_mean']:.4f}")
+    h, w = cases[0]["hit"].shape[:2]
+    record["speed_vs_error"] = {
+        "scene": f"fractal terrain only, sky = earth = {GREY} (a miss is the same colour in both)",
+        "timing": {"width": WIDTH, "height": HEIGHT, "samples": SAMPLES, "repeats": repeats,
+                   "what": "render_terrain alone, level_bias and pre-image oversample as given; no "
+                           "warm-up call per setting (one per view before the grid)"},
+        "error": {"pixels": f"every {stride}th pixel each way of the same {WIDTH} x {HEIGHT} "
+                            f"render ({w} x {h} pixels, from pixel {stride // 2})",
+                  "width": w, "height": h, "stride": stride,
+                  "reference": "channel_worker/testing/terrain_reference.py reference_rays: "
+                               "exact ray casting of the level-0 surface, rays through the rgss4 "
+                               "samples and the centre of each of those pixels",
+                  "colour": "per pixel mean absolute linear-RGB error (over channels) of our "
+                            "pixel against the reference's mean of its 5 rays (misses take the "
+                            "grey background); colour_mean is the mean over pixels, colour_p99 "
+                            "the 99th percentile",
+                  "coverage_disagree": "share of rgss4 samples where (our inv_z > 0) differs "
+                                       "from the reference's hit",
+                  "range": "relative error of our pixel range (a render with one centre "
+                           "sample) against the centre ray's, where both see terrain: median "
+                           "and 95th percentile",
+                  "reference_seconds": [c["ref_seconds"] for c in cases]},
+        "views": [{"altitude_agl_m": c["agl"], "pitch_deg": c["pitch"]} for c in cases],
+        "aggregate": "terrain_ms, voxels and every error: mean over the views",
+        "module_constant_patch_effective": constant_patch_effective,
+        "rows": rows}
+
+
+def reference_subset(terrain, view, offsets: np.ndarray, stride: int) -> dict[str, np.ndarray]:
+    """The exact reference for every stride-th pixel (each way) of a view: the rays through
+    the given sample offsets of pixels (stride // 2 + k stride), as reference_terrain traces
+    them for a whole raster. Returns ys, xs and (h, w, S) rgb / range / hit."""
+    from channel_worker.pipeline.project import screen_mapping
+    from channel_worker.testing.terrain_reference import reference_rays
+
+    sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
+    xs = np.arange(stride // 2, view.width, stride)
+    ys = np.arange(stride // 2, view.height, stride)
+    sx = xs[None, :, None] + offsets[None, None, :, 0]
+    sy = ys[:, None, None] + offsets[None, None, :, 1]
+    d = np.empty((ys.size, xs.size, offsets.shape[0], 3))
+    d[..., 0] = (sx - sx_off) / sx_scale  # guard: the channel's scales are nonzero
+    d[..., 1] = (sy - sy_off) / sy_scale
+    d[..., 2] = 1.0
+    rgb, range_m, hit = reference_rays(terrain, view.eye,
+                                       d.reshape(-1, 3) @ np.asarray(view.world_to_eye))
+    shape = d.shape[:3]
+    return {"ys": ys, "xs": xs, "rgb": rgb.reshape(shape + (3,)),
+            "range": range_m.reshape(shape), "hit": hit.reshape(shape)}
+
+
+def subset_error(bg, bgc, case: dict) -> dict[str, float]:
+    """Colour, coverage and range error of our full-size render (bg: rgss4, bgc: one centre
+    sample) at the reference's pixels."""
+    pick = np.ix_(case["ys"], case["xs"])
+    err = np.abs(bg.rgb[pick].astype(np.float64) - case["ref_rgb"]).mean(axis=2)
+    ours = bg.inv_z[pick] > 0.0
+    ref_hit_c = case["hit"][..., -1]
+    r_ref = case["range"][..., -1]
+    r_ours = bgc.range_m[pick].astype(np.float64)
+    seen = ref_hit_c & np.isfinite(r_ours)
+    rel = np.abs(r_ours[seen] - r_ref[seen]) / r_ref[seen]
+    return {"colour_mean": float(err.mean()), "colour_p99": float(np.percentile(err, 99)),
+            "coverage_disagree": float((ours != case["ref_hit4"]).mean()),
+            "range_median": float(np.median(rel)) if rel.size else 0.0,
+            "range_p95": float(np.percentile(rel, 95)) if rel.size else 0.0}
+
+
+# --- report ----------------------------------------------------------------------------------
+
+def table(head: list[str], body: list[list[str]]) -> None:
+    widths = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(head)]
+    print("  ".join(h.rjust(w) for h, w in zip(head, widths, strict=True)))
+    for b in body:
+        print("  ".join(c.rjust(w) for c, w in zip(b, widths, strict=True)))
+
+
+def print_report(record: dict) -> None:
+    """The tables and the verdict on the seed's expectations."""
+    rows = record["sweep"]
+    s = record["sweep_settings"]
+    altitudes, pitches = s["altitudes_agl_m"], s["pitches_deg"]
+    cell = {(r["altitude_agl_m"], r["pitch_deg"]): r for r in rows}
+    t = record["fractal_terrain"]
+    print(f"\nfractal terrain {t['voxels'][0]} x {t['voxels'][1]} voxels at {t['spacing_m']:g} m "
+          f"({t['levels']} levels), {s['channel']['width']} x {s['channel']['height']}, "
+          f"{SAMPLES}, one core; heading {s['heading_deg']:g}, roll 0; rows: height above the "
+          "ground under the eye, columns: pitch")
+    for title, key, fmt in (("voxels visited (thousands)", "voxels", lambda v: f"{v / 1e3:,.0f}"),
+                            ("render_terrain alone (per-sample depth everywhere), median ms",
+                             "render_terrain_ms", lambda v: f"{v:.1f}"),
+                            (("terrain stage inside render_frame (no polygons, so no "
+                              "per-sample depth), median ms"), "terrain_ms",
+                             lambda v: f"{v:.1f}"),
+                            ("whole frame (terrain-only scene), median ms", "frame_ms",
+                             lambda v: f"{v:.1f}")):
+        print(f"\n{title}")
+        table(["agl m"] + [f"{p}" for p in pitches],
+              [[str(a)] + [fmt(cell[(a, p)][key]) for p in pitches] for a in altitudes])
+    chk = record["sweep_check"]
+    print("\nseed: voxels visited about constant with altitude (range) -> "
+          + ("HOLDS" if chk["constant_with_altitude"] else "DOES NOT HOLD"))
+    for p, d in chk["voxels_by_pitch_over_altitudes"].items():
+        print(f"  pitch {p:>4s}: {d['min']:>10,} .. {d['max']:>10,} voxels over the altitudes "
+              f"(x {d['max_over_min']:.1f}; highest / lowest altitude x "
+              f"{d['highest_over_lowest_altitude']:.2f})")
+    print("  a level-0 voxel straight below the eye is " + ", ".join(
+        f"{cell[(a, pitches[0])]['level0_voxel_px_at_nadir']:.2g} px at {a} m" for a in altitudes)
+        + ": below the level window the finest level is magnified and fewer voxels cover the "
+          "view")
+    print("seed: voxels visited grow as the pitch gets shallower -> "
+          + ("HOLDS" if chk["grows_as_pitch_gets_shallower"] else "DOES NOT HOLD everywhere"))
+    for a, d in chk["voxels_by_altitude_over_pitch"].items():
+        drops = "; ".join(d["drops_over_10_percent"]) or "none"
+        print(f"  {a:>5s} m: shallowest / steepest x {d['shallowest_over_steepest']:.1f}, "
+              f"peak at pitch {d['peak_pitch_deg']}; drops: {drops}")
+
+    b = record["bundled"]
+    print(f"\nbundled Jacksboro terrain, demo scene (terrain, haze, clouds, airfield), "
+          f"{b['channel']['name']} channel {b['channel']['width']} x {b['channel']['height']}")
+    table(["t s", "terrain ms", "frame ms", "voxels", "columns x rows"],
+          [[f"{p['t_s']:g}", f"{p['terrain_ms']:.1f}", f"{p['frame_ms']:.1f}", f"{p['voxels']:,}",
+            f"{p['columns']} x {p['rows']}"] for p in b["points"]])
+
+    print("\nterrain stage split (median ms): scan = column scan, clouds = cloud scan, "
+          "warp = the rest")
+    table(["scene", "view", "variant", "scan", "clouds", "warp", "total", "voxels"],
+          [[r["scene"], r["view"], r["variant"], f"{r['scan_ms']:.1f}", f"{r['clouds_ms']:.1f}",
+            f"{r['warp_ms']:.1f}", f"{r['total_ms']:.1f}",
+            f"{r['voxels']:,}" if r["voxels"] is not None else "-"]
+           for r in record["stage_split"]["rows"]])
+
+    nt = record["no_terrain"]
+    print(f"\na scene without terrain or haze ({nt['channel']} channel, {nt['eyepoint']})")
+    table(["scene", "terrain stage", "terrain ms", "frame ms"],
+          [[r["scene"], "run" if r["terrain_stage_run"] else "skipped",
+            f"{r['terrain_ms']:.1f}" if r["terrain_ms"] is not None else "-",
+            f"{r['frame_ms']:.1f}"] for r in nt["rows"]])
+    rt = nt["render_terrain_on_flat_scene"]
+    print(f"  render_terrain on the flat scene returns None: {rt['returns_none']} "
+          f"({rt['median_us']:.1f} us)")
+
+    print("\nlevel window each bias selects (voxel width in pixels where it is free to choose)")
+    table(["bias", "measured px", "documented px"],
+          [[str(r["bias"]), (f"{r['voxel_px_min']:.2f} .. {r['voxel_px_max']:.2f}"
+                             if r["voxel_px_min"] is not None else "-"),
+            f"{r['documented_px'][0]:g} .. {r['documented_px'][1]:g}"]
+           for r in record["level_window"]["rows"]])
+
+    sv = record["speed_vs_error"]
+    e = sv["error"]
+    print(f"\nspeed against error: terrain stage at {WIDTH} x {HEIGHT} (median ms) and its "
+          f"error on every {e['stride']}th pixel ({e['width']} x {e['height']}) against the exact "
+          f"reference; mean over {len(sv['views'])} views")
+    table(["bias", "oversample", "ms", "voxels", "colour mean", "colour p99", "coverage",
+           "range med", "range p95"],
+          [[str(r["level_bias"]), f"{r['preimage_oversample']:g}", f"{r['terrain_ms']:.1f}",
+            f"{r['voxels']:,}", f"{r['colour_mean']:.4f}", f"{r['colour_p99']:.4f}",
+            f"{r['coverage_disagree']:.4f}", f"{r['range_median']:.4f}",
+            f"{r['range_p95']:.4f}"] for r in sv["rows"]])
+    if not sv["module_constant_patch_effective"]:
+        print("  (setting terrain.PREIMAGE_OVERSAMPLE has no effect on render_terrain at this "
+              "commit: preimage_grid's default was bound at import; the bench replaces "
+              "preimage_grid)")
+    m = record["machine"]
+    noise = record["sweep_noise"]
+    print(f"\nnoise: the slowest of a sweep cell's frames is x {noise['median']:.2f} the fastest "
+          f"(median over the cells; worst x {noise['worst']:.2f}); above about x 1.3, another "
+          "process shared the CPU: rerun")
+    print(f"load average {m['load_average_1min']:.2f} at the start, "
+          f"{m['load_average_1min_at_end']:.2f} at the end; {record['seconds']:.0f} s in all")
+
+
+def plot(record: dict, path: Path) -> bool:
+    """Four panels: voxels and stage time against pitch per altitude, the stage split, time
+    against error. Returns False (and draws nothing) when matplotlib is not installed."""
+    try:
+        import matplotlib
+    except ImportError:
+        return False
+    matplotlib.use("Agg")  # no display needed
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(13.0, 11.0))
+    s = record["sweep_settings"]
+    cmap = plt.get_cmap("viridis")
+    alts = s["altitudes_agl_m"]
+    for k, agl in enumerate(alts):
+        pts = [r for r in record["sweep"] if r["altitude_agl_m"] == agl]
+        colour = cmap(k / max(len(alts) - 1, 1))
+        pitch = [r["pitch_deg"] for r in pts]
+        axes[0, 0].plot(pitch, [r["voxels"] for r in pts], "o-", color=colour, label=f"{agl} m")
+        axes[0, 1].plot(pitch, [r["render_terrain_ms"] for r in pts], "o-", color=colour,
+                        label=f"{agl} m")
+        axes[0, 1].plot(pitch, [r["frame_ms"] for r in pts], ":", color=colour)
+    axes[0, 0].set_yscale("log")
+    axes[0, 0].set_xlabel("pitch, degrees")
+    axes[0, 0].set_ylabel("voxels visited per frame")
+    axes[0, 0].set_title("voxels visited (fractal terrain, height above ground)", fontsize=9)
+    axes[0, 0].legend(fontsize=7)
+    axes[0, 1].set_xlabel("pitch, degrees")
+    axes[0, 1].set_ylabel("median ms, one core")
+    axes[0, 1].set_title(f"render_terrain alone (solid), whole frame of a terrain-only scene "
+                         f"(dotted)\n{WIDTH} x {HEIGHT}, {SAMPLES}, fractal terrain", fontsize=9)
+    axes[0, 1].legend(fontsize=7)
+
+    split = record["stage_split"]["rows"]
+    labels = [(f"{r['view']}: " if r["scene"] == "fractal"
+               else f"Jacksboro {r['view'].removeprefix('flight ')}: ")
+              + r["variant"].removesuffix(" (demo)") for r in split]
+    ypos = np.arange(len(split))
+    left = np.zeros(len(split))
+    for key, colour in (("scan_ms", "tab:brown"), ("clouds_ms", "tab:gray"),
+                        ("warp_ms", "tab:blue")):
+        v = np.array([r[key] for r in split])
+        axes[1, 0].barh(ypos, v, left=left, color=colour, label=key.removesuffix("_ms"))
+        left += v
+    axes[1, 0].set_yticks(ypos, labels, fontsize=6)
+    axes[1, 0].invert_yaxis()
+    axes[1, 0].set_xlabel("median ms, one core")
+    axes[1, 0].set_title("terrain stage split: scan, cloud scan, warp", fontsize=9)
+    axes[1, 0].legend(fontsize=7)
+
+    sv = record["speed_vs_error"]
+    markers = {0.75: "v", 1.0: "o", 1.5: "s", 2.0: "D"}
+    bias_colour = {-1: "tab:green", 0: "tab:blue", 1: "tab:orange", 2: "tab:red"}
+    ax = axes[1, 1]
+    for bias in sorted({r["level_bias"] for r in sv["rows"]}):
+        pts = sorted((r for r in sv["rows"] if r["level_bias"] == bias),
+                     key=lambda r: r["preimage_oversample"])
+        ax.plot([r["colour_mean"] for r in pts], [r["terrain_ms"] for r in pts], "-",
+                color=bias_colour.get(bias, "k"), lw=0.8, label=f"level bias {bias}")
+        for r in pts:
+            ax.plot(r["colour_mean"], r["terrain_ms"], markers.get(r["preimage_oversample"], "o"),
+                    color=bias_colour.get(bias, "k"))
+            ax.annotate(f"{r['preimage_oversample']:g}", (r["colour_mean"], r["terrain_ms"]),
+                        textcoords="offset points", xytext=(4, 3), fontsize=6)
+    ax.set_xlabel(f"mean colour error against the exact reference (every "
+                  f"{sv['error']['stride']}th pixel, linear RGB)")
+    ax.set_ylabel(f"terrain stage, median ms at {WIDTH} x {HEIGHT}")
+    ax.set_title("speed against error: level bias (colour), pre-image oversample (label)",
+                 fontsize=9)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110, bbox_inches="tight")  # long bar labels on the left
+    plt.close(fig)
+    return True
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
