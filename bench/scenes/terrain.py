@@ -33,10 +33,7 @@ import dataclasses
 import hashlib
 import json
 import math
-import os
-import shutil
 import sys
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -51,7 +48,7 @@ from channel_worker.pipeline.types import Database, Eyepoint  # noqa: E402
 from channel_worker.terrain.build import build_terrain  # noqa: E402
 from channel_worker.terrain.bundled import cache_dir, recipe_key  # noqa: E402
 from channel_worker.terrain.database import TerrainDatabase  # noqa: E402
-from channel_worker.terrain.store import load_terrain, save_terrain  # noqa: E402
+from channel_worker.terrain.store import build_cached, load_terrain  # noqa: E402
 
 FRACTAL_RECIPE: dict[str, Any] = {
     "generator": "bench/scenes/terrain.py ridged fBm/1",
@@ -160,32 +157,21 @@ def fractal_terrain_path(recipe: dict[str, Any] = FRACTAL_RECIPE, *, verbose: bo
     digest = hashlib.sha256(recipe_key(recipe).encode())
     digest.update(Path(__file__).read_bytes())  # a changed generator rebuilds
     target = cache_dir() / f"bench-fractal-{digest.hexdigest()[:16]}.igt"
-    if (target / "terrain.json").is_file():
-        return target
-    if verbose:
+    if verbose and not (target / "terrain.json").is_file():
         print(f"building the bench terrain ({recipe['voxels']}^2 voxels at "
               f"{recipe['spacing_m']:g} m) into {target} ...", file=sys.stderr, flush=True)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=target.parent))
-    try:
-        heights, colours = fractal_nodes(recipe)
-        n = int(recipe["voxels"])
-        half = 0.5 * n * float(recipe["spacing_m"])
-        db = build_terrain(heights, colours, spacing_m=float(recipe["spacing_m"]),
-                           origin=(-half, -half, 0.0), page_size=int(recipe["page_size"]),
-                           info={"source": "procedural (bench/scenes/terrain.py)",
-                                 "licence": "generated", "recipe": recipe})
-        del heights, colours
-        save_terrain(db, tmp / "db.igt")
-        del db
-        try:
-            os.rename(tmp / "db.igt", target)
-        except OSError:
-            if not (target / "terrain.json").is_file():
-                raise
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return target
+    return build_cached(target, lambda: _build_fractal(recipe))
+
+
+def _build_fractal(recipe: dict[str, Any]) -> TerrainDatabase:
+    # The node grids go out of scope before the database is saved (memory peak).
+    heights, colours = fractal_nodes(recipe)
+    n = int(recipe["voxels"])
+    half = 0.5 * n * float(recipe["spacing_m"])
+    return build_terrain(heights, colours, spacing_m=float(recipe["spacing_m"]),
+                         origin=(-half, -half, 0.0), page_size=int(recipe["page_size"]),
+                         info={"source": "procedural (bench/scenes/terrain.py)",
+                               "licence": "generated", "recipe": recipe})
 
 
 def fractal_terrain(recipe: dict[str, Any] = FRACTAL_RECIPE) -> TerrainDatabase:

@@ -19,7 +19,8 @@ PRE_CHANNELS = 5
 # Column state (one small array per column, so the helpers can update it in place).
 _ROW, _AR, _AG, _AB, _AW, _IR, _TMAX, _IRF = 0, 1, 2, 3, 4, 5, 6, 7
 _R1, _Z1, _R2, _Z2 = 8, 9, 10, 11  # the last segment emitted
-_STATE = 12
+_TANMAX = 12  # tan of _TMAX, from the point that set it
+_STATE = 13
 
 #: Depth of the skirt down the database's edge (metres): deep enough to reach below any
 #: horizon the scan starts from.
@@ -168,7 +169,11 @@ def _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, ta, tb,
         ca_r = ce_r
         ca_g = ce_g
         ca_b = ce_b
-    st[_TMAX] = max(st[_TMAX], b)
+    if b > st[_TMAX]:
+        st[_TMAX] = b
+        # Its tangent from the segment end it came from (z / r), no trigonometry.
+        rb, zb = (r2, z2) if tb == 1.0 else (r1, z1)
+        st[_TANMAX] = zb / rb if rb > 0.0 else math.tan(min(b, 1.5707963))
 
 
 @njit(cache=True, inline="always")
@@ -183,25 +188,23 @@ def _dda_axis(i, d, e, direction, inv):
 
 
 @njit(cache=True, inline="always")
+def _slab(e, d, extent, r_lo, r_hi):
+    """Clip [r_lo, r_hi] of the line e + r d to the slab [0, extent] (r_lo >= r_hi: missed)."""
+    if abs(d) > 1e-15:
+        t1 = (0.0 - e) / d  # guard: |d| > 1e-15
+        t2 = (extent - e) / d
+        return max(r_lo, min(t1, t2)), min(r_hi, max(t1, t2))
+    if 0.0 <= e <= extent:
+        return r_lo, r_hi
+    return 0.0, -1.0  # parallel to the slab and outside it
+
+
+@njit(cache=True, inline="always")
 def ground_ray_span(ex, ey, dx, dy, extent_x, extent_y, r_lo, r_hi):
     """The part [r_lo, r_hi] of the ground ray (ex, ey) + r (dx, dy), r >= 0, inside the
     rectangle [0, extent_x] x [0, extent_y] (slab method); r_lo >= r_hi when it misses."""
-    r_lo = max(r_lo, 0.0)
-    if abs(dx) > 1e-15:
-        t1 = (0.0 - ex) / dx  # guard: |dx| > 1e-15
-        t2 = (extent_x - ex) / dx
-        r_lo = max(r_lo, min(t1, t2))
-        r_hi = min(r_hi, max(t1, t2))
-    elif not (0.0 <= ex <= extent_x):
-        return 0.0, -1.0  # parallel to the x slab and outside it
-    if abs(dy) > 1e-15:
-        t1 = (0.0 - ey) / dy  # guard: |dy| > 1e-15
-        t2 = (extent_y - ey) / dy
-        r_lo = max(r_lo, min(t1, t2))
-        r_hi = min(r_hi, max(t1, t2))
-    elif not (0.0 <= ey <= extent_y):
-        return 0.0, -1.0
-    return r_lo, r_hi
+    r_lo, r_hi = _slab(ex, dx, extent_x, max(r_lo, 0.0), r_hi)
+    return _slab(ey, dy, extent_y, r_lo, r_hi)
 
 
 @njit(cache=True, inline="always")
@@ -272,9 +275,6 @@ def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x
     kmax = first_row.shape[0] - 1
     for j in prange(ncols):
         st = np.zeros(_STATE)
-        for i in range(nrows):
-            for c in range(PRE_CHANNELS):
-                out_pre[j, i, c] = 0.0
         k = kmax
         if j != 0 and j != ncols - 1:  # the first and last columns scan every row
             k = 0
@@ -292,10 +292,14 @@ def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x
         # The row the scan stopped in holds what covered it so far (a silhouette).
         if int(st[_ROW]) < nrows and st[_AW] > 0.0:
             _finish_row(out_pre, j, st, theta0, dtheta, haze)
-        # The first row nothing covers keeps the last surface's inverse range continued (with
-        # no coverage): the warp interpolates between it and the last covered row, which is
-        # exact for planar ground right up to the edge.
+        # Rows the scan never finished see nothing (texels below the column's first row are
+        # fill_skipped's). The first of them keeps the last surface's inverse range continued
+        # (with no coverage): the warp interpolates between it and the last covered row,
+        # which is exact for planar ground right up to the edge.
         row = int(st[_ROW])
+        for i in range(row, nrows):
+            for c in range(PRE_CHANNELS):
+                out_pre[j, i, c] = 0.0
         if row < nrows and (st[_R1] != 0.0 or st[_R2] != 0.0):
             out_pre[j, row, PRE_IR] = _inverse_range_on_line(
                 row_cs[row, 0], row_cs[row, 1], st[_R1], st[_Z1], st[_R2], st[_Z2])
@@ -364,6 +368,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
     z_prev = 0.0
     have_prev = False
     tan_max = math.tan(theta_lo) if theta_lo > -0.5 * math.pi + 1e-9 else -math.inf
+    st[_TANMAX] = tan_max
     # Guard: a zero direction component never crosses that family of grid lines.
     inv_dx = 1.0 / dx if dx != 0.0 else 0.0
     inv_dy = 1.0 / dy if dy != 0.0 else 0.0
@@ -454,7 +459,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 0),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 1),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 2))
-                tan_max = _tan_of(st[_TMAX], z_in, r)
+                tan_max = st[_TANMAX]
         elif abs(z_in - z_prev) > _WALL_DZ:
             cached = False  # the surface jumps here: nothing of the last voxel carries over
             if z_in > z_prev and z_in > r * tan_max:
@@ -464,7 +469,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 0),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 1),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 2))
-                tan_max = _tan_of(st[_TMAX], z_in, r)
+                tan_max = st[_TANMAX]
         k = pat_pages[page, vy, vx] if level == 0 else 0
         if k > 0:
             # A vertical pattern (seed 002 pattern insertion): its bands stacked as a wall at
@@ -481,7 +486,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
                     _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages,
                           lut, r, lo, hi,
                           pat_rgb[k, band, 0], pat_rgb[k, band, 1], pat_rgb[k, band, 2])
-                    tan_max = _tan_of(st[_TMAX], hi, r)
+                    tan_max = st[_TANMAX]
                 lo = hi
             cr = pat_rgb[k, pat_bands[k] - 1, 0]
             cg = pat_rgb[k, pat_bands[k] - 1, 1]
@@ -490,7 +495,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
                 _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r, lo, r_next,
                          lo, math.nan, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb,
                          cr, cg, cb)
-                tan_max = _tan_of(st[_TMAX], lo, r_next)
+                tan_max = st[_TANMAX]
             z_prev = lo  # the drop back to the ground beyond is never seen from outside
         else:
             z_out = _corner_z(z_pages, page, vy, vx, u1, v1) - ez
@@ -511,7 +516,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
                 t_out = _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r,
                                  z_in, r_next, z_out, t_in, rgb_pages, lut, page, vy, vx, u0, v0,
                                  u1, v1, e_r, e_g, e_b, x_r, x_g, x_b)
-                tan_max = _tan_of(st[_TMAX], z_out, r_next)
+                tan_max = st[_TANMAX]
                 cached = True
             else:
                 cached = False
@@ -592,14 +597,6 @@ def _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r1, z1, r2
           r1, z1, r2, z2, rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, c1r, c1g, c1b,
           ca_r, ca_g, ca_b, cb_r, cb_g, cb_b)
     return t_far
-
-
-@njit(cache=True, inline="always")
-def _tan_of(theta_max, z, r):
-    """tan(theta_max), from the point (r, z) that set it when it did (no tan call)."""
-    if r > 0.0 and math.atan2(z, r) == theta_max:
-        return z / r
-    return math.tan(min(theta_max, 1.5707963))
 
 
 @njit(cache=True, inline="always")

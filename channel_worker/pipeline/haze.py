@@ -52,17 +52,16 @@ def haze_params(haze: Haze | None, eye_z: float) -> np.ndarray:
     if haze is None:
         return out
     inv_hs = 0.0 if math.isinf(haze.scale_height_m) else 1.0 / haze.scale_height_m
-    # Guard: the scene parser requires visibility_m > 0 and scale_height_m > 0.
-    beta0 = math.log(2.0) / haze.visibility_m
-    # Clamp the exponent: an eye far below the base height would overflow to inf.
-    beta_eye = beta0 * math.exp(min(-(eye_z - haze.base_height_m) * inv_hs, 700.0))
-    out[:] = (1.0, beta_eye, inv_hs, haze.colour[0], haze.colour[1], haze.colour[2], eye_z)
+    out[:] = (1.0, beta_at(haze, eye_z), inv_hs, haze.colour[0], haze.colour[1], haze.colour[2],
+              eye_z)
     return out
 
 
 def beta_at(haze: Haze, z: float) -> float:
     """Extinction coefficient at world height z, 1/metres."""
     inv_hs = 0.0 if math.isinf(haze.scale_height_m) else 1.0 / haze.scale_height_m
+    # Guard: the scene parser requires visibility_m > 0 and scale_height_m > 0. The exponent is
+    # clamped: an eye far below the base height would overflow to inf.
     return math.log(2.0) / haze.visibility_m * math.exp(min(-(z - haze.base_height_m) * inv_hs, 700.0))
 
 
@@ -96,3 +95,12 @@ def haze_amount(params, range_m, sin_elev):
 def haze_amount_py(haze: Haze, eye_z: float, range_m: float, sin_elev: float) -> float:
     """haze_amount for one ray from Python (tests, reports)."""
     return float(haze_amount(haze_params(haze, eye_z), float(range_m), float(sin_elev)))
+
+
+@njit(cache=True)
+def sky_haze_table(params, theta0, dtheta, n):
+    """(n,) haze of the sky (range infinite) at elevations theta0 + (i + 1/2) dtheta."""
+    out = np.empty(n)
+    for i in range(n):
+        out[i] = haze_amount(params, math.inf, max(math.sin(theta0 + (i + 0.5) * dtheta), 0.0))
+    return out

@@ -10,7 +10,8 @@ from ._resolve_kernels import box_kernel, filter_kernel, shade_kernel
 from .haze import haze_params
 from .horizon import earth_dz_row, height_above_earth
 from .project import screen_mapping
-from .types import Background, Database, Image, SampleBuffer, ScreenPolygons, View, rgb_array
+from .types import (Background, Database, Image, SampleBuffer, ScreenPolygons, View,
+                    background_arrays, rgb_array)
 
 
 def _box(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
@@ -83,19 +84,14 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
     sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
     tx = (np.arange(w)[:, None] + buffer.offsets[None, :, 0] - sx_off) / sx_scale
     ty = (np.arange(h)[:, None] + buffer.offsets[None, :, 1] - sy_off) / sy_scale
-    if background is None:
-        bg_rgb, bg_range = np.zeros((1, 1, 3), np.float32), np.zeros((1, 1), np.float32)
-    else:
-        bg_rgb, bg_range = background.rgb, background.range_m
+    _, bg_rgb, _, bg_range, cloud_on, cloud = background_arrays(background)
     sxs = np.arange(w)[:, None] + buffer.offsets[None, :, 0]
     sys_ = np.arange(h)[:, None] + buffer.offsets[None, :, 1]
     args = (buffer.opaque, buffer.translucent, buffer.translucent_count, polygon_range,
             screen.colour, screen.opacity, database.sky_colour, database.earth_colour, tx, ty,
             earth_dz_row(view), height_above_earth(database, view), want_range, bg_rgb, bg_range,
-            haze_params(database.haze, float(view.eye[2])), screen.inv_z, sxs, sys_,
-            background is not None and background.cloud is not None,
-            background.cloud if background is not None and background.cloud is not None
-            else np.zeros((1, 1, 5), np.float32))
+            haze_params(database.haze, float(view.eye[2])), screen.inv_z, sxs, sys_, cloud_on,
+            cloud)
     if filter == "box":
         box_kernel(*args, rgb, range_m)
     else:

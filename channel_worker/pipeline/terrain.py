@@ -26,9 +26,10 @@ import numpy as np
 from ._cloud_kernels import scan_clouds_kernel
 from ._terrain_kernels import PRE_CHANNELS, fill_skipped, scan_kernel, warp_kernel
 from .clouds import BASE_SHADE, CLOUD_FACTOR
-from .haze import OPAQUE_TAU, beta_at, haze_amount, haze_params
+from .haze import OPAQUE_TAU, beta_at, haze_params, sky_haze_table
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
+from .scene import srgb_to_linear
 from .types import Background, Database, View
 
 #: Level bias: voxels are kept between 2**bias and 2**(bias + 1) projected pixels wide.
@@ -48,9 +49,8 @@ WARP_BLOCK = 8
 #: stats["terrain_eye_clamped"].
 MIN_CLEARANCE_M = 0.01
 
-#: sRGB-encoded byte -> linear (IEC 61966-2-1).
-_SRGB_LUT = np.array([c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
-                      for c in np.arange(256) / 255.0], np.float32)
+#: sRGB-encoded byte -> linear, for the database's uint8 colours.
+_SRGB_LUT = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
 
 
 def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
@@ -287,9 +287,7 @@ def _sky_haze(haze: np.ndarray, grid: PreimageGrid) -> tuple[np.ndarray, float, 
     pre-image rows: (table, elevation of row 0's lower edge, row height), radians."""
     if haze[0] == 0.0:
         return np.zeros(1), grid.theta0, grid.theta1 - grid.theta0
-    sin = np.sin(grid.theta0 + (np.arange(grid.nrows) + 0.5) * grid.dtheta)
-    table = np.array([haze_amount(haze, math.inf, max(float(x), 0.0)) for x in sin])
-    return table, grid.theta0, grid.dtheta
+    return sky_haze_table(haze, grid.theta0, grid.dtheta, grid.nrows), grid.theta0, grid.dtheta
 
 
 def _scan_clouds(database: Database, view: View, grid: PreimageGrid,

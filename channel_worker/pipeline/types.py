@@ -250,6 +250,17 @@ class Background:
     cloud: np.ndarray | None = None
 
 
+def background_arrays(background: Background | None) -> tuple:
+    """What the visibility and resolve kernels take of a Background: (on, rgb, inv_z, range_m,
+    cloud_on, cloud), with one-element stand-ins for what is absent."""
+    if background is None:
+        return (False, np.zeros((1, 1, 3), np.float32), np.zeros((1, 1, 1), np.float32),
+                np.zeros((1, 1), np.float32), False, np.zeros((1, 1, 5), np.float32))
+    cloud = background.cloud
+    return (True, background.rgb, background.inv_z, background.range_m, cloud is not None,
+            cloud if cloud is not None else np.zeros((1, 1, 5), np.float32))
+
+
 @dataclass(frozen=True)
 class Image:
     """One channel's resolved output.

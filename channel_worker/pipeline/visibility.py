@@ -41,6 +41,7 @@ from .types import (
     SampleBuffer,
     ScreenPolygons,
     View,
+    background_arrays,
     check_max_translucent,
     rgb_array,
 )
@@ -139,15 +140,7 @@ def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opa
 def _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opaque, trans, count,
             polygon_range, dropped, stopped, fused, sky, earth, height, rgb, background,
             haze) -> None:
-    if background is None:
-        bg = (False, np.zeros((1, 1, 3), np.float32), np.zeros((1, 1, 1), np.float32),
-              np.zeros((1, 1), np.float32))
-    else:
-        bg = (True, background.rgb, background.inv_z, background.range_m)
-    if background is None or background.cloud is None:
-        cloud = (False, np.zeros((1, 1, 5), np.float32))
-    else:
-        cloud = (True, background.cloud)
+    bg_on, bg_rgb, bg_iz, bg_range, cloud_on, cloud = background_arrays(background)
     visibility_kernel(bins.start, bins.polygon, bins.full, bins.size, bins.tiles_x, view.width,
                       view.height, screen.start, edges.ia, edges.ib, edges.ic, edges.bias,
                       edges.x0, edges.x1, edges.y0, edges.y1, edges.nearest_inv_z,
@@ -155,8 +148,8 @@ def _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opa
                       _offsets_fixed(offsets), SUBPIXEL, np.array(earth_dz_screen(view)),
                       np.array(screen_mapping(view)), any_translucent, with_range,
                       opaque, trans, count, polygon_range, dropped, stopped,
-                      fused, screen.colour, sky, earth, earth_dz_row(view), height, rgb, *bg, haze,
-                      *cloud)
+                      fused, screen.colour, sky, earth, earth_dz_row(view), height, rgb, bg_on, bg_rgb, bg_iz,
+                      bg_range, haze, cloud_on, cloud)
 
 
 def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np.ndarray, *,

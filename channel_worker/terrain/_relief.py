@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from channel_worker.pipeline.scene import srgb_to_linear
+
 from .database import TerrainError
 
 
@@ -32,5 +34,4 @@ def relief_colours(heights: np.ndarray, cmap_name: str, *, spacing_m: float, whe
     north_up = heights[::-1]
     rgba = light.shade(north_up, cmap=cmap, blend_mode="soft", vert_exag=exaggeration,
                        dx=spacing_m, dy=spacing_m, vmin=lo, vmax=hi if hi > lo else lo + 1.0)
-    srgb = np.clip(np.asarray(rgba[::-1, :, :3], np.float64), 0.0, 1.0)
-    return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+    return srgb_to_linear(np.clip(np.asarray(rgba[::-1, :, :3], np.float64), 0.0, 1.0))

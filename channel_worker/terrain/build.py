@@ -35,6 +35,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from channel_worker.pipeline.scene import srgb_to_linear
 from services.image_io import linear_to_srgb8
 
 from .database import DEFAULT_PAGE_SIZE, Pattern, TerrainDatabase, TerrainError, page_layout
@@ -75,7 +76,7 @@ def build_terrain(heights: np.ndarray, colours: np.ndarray, *, spacing_m: float,
     level_heights, level_colours = [heights], [colours]
     voxel_colour = _voxel_means(colours)
     if mask is not None and mask.any():
-        tops = np.array([_srgb_to_linear(p.rgb[-1] / 255.0) for p in patterns])
+        tops = np.array([srgb_to_linear(p.rgb[-1] / 255.0) for p in patterns])
         voxel_colour = np.where(mask[..., None] > 0, tops[np.maximum(mask, 1) - 1], voxel_colour)
     for _ in range(1, levels):
         level_heights.append(_coarsen_heights(level_heights[-1]))
@@ -221,12 +222,6 @@ def _masked_max(values: np.ndarray, voxel_mask: np.ndarray) -> float | None:
         return None
     corners = np.maximum(np.maximum(values[:-1, :-1], values[:-1, 1:]), np.maximum(values[1:, :-1], values[1:, 1:]))
     return float(corners[voxel_mask].max())
-
-
-def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """sRGB-encoded [0, 1] -> linear (IEC 61966-2-1)."""
-    c = np.asarray(c, np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 def _check_inputs(heights, colours, spacing_m, origin, page_size):

@@ -22,13 +22,11 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import shutil
-import tempfile
 from importlib import metadata
 from pathlib import Path
 
 from .database import FORMAT
-from .store import load_terrain, save_terrain
+from .store import build_cached, load_terrain
 
 #: Lat, lon (degrees, WGS-84) and height (metres, the DEM's datum) of world (0, 0, 0).
 AIRFIELD_ORIGIN = (36.6089, -84.1708, 349.2)
@@ -79,22 +77,8 @@ def bundled_terrain_path() -> Path:
     """
     from .recipe import build_from_recipe
 
-    target = cache_dir() / f"jacksboro-{recipe_key(BUNDLED_RECIPE)}.igt"
-    if (target / "terrain.json").is_file():
-        return target
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=target.parent))
-    try:
-        save_terrain(build_from_recipe(BUNDLED_RECIPE), tmp / "db.igt")
-        try:
-            os.rename(tmp / "db.igt", target)
-        except OSError:
-            # Another process renamed its build into place first: keep that one.
-            if not (target / "terrain.json").is_file():
-                raise
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return target
+    return build_cached(cache_dir() / f"jacksboro-{recipe_key(BUNDLED_RECIPE)}.igt",
+                        lambda: build_from_recipe(BUNDLED_RECIPE))
 
 
 def load_bundled_terrain(*, mmap: bool = True):

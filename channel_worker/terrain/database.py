@@ -22,10 +22,7 @@ Layout (docs/terrain-database.md):
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 

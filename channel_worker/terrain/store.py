@@ -20,7 +20,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import shutil
+import tempfile
+from collections.abc import Callable
 from itertools import pairwise
 from pathlib import Path
 from typing import Any
@@ -262,3 +266,29 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     raise TypeError(f"{type(value).__name__} {value!r} is not JSON")
+
+
+def build_cached(target: str | Path, build: Callable[[], TerrainDatabase]) -> Path:
+    """A database directory built once: `target` if it is complete, else build() saved into a
+    temporary directory beside it and renamed into place, so a reader never sees a half-written
+    database and two processes building at once both end with the same complete one.
+
+    Returns:
+        The directory.
+    """
+    target = Path(target)
+    if (target / HEADER).is_file():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=target.parent))
+    try:
+        save_terrain(build(), tmp / "db.igt")
+        try:
+            os.rename(tmp / "db.igt", target)
+        except OSError:
+            # Another process renamed its build into place first: keep that one.
+            if not (target / HEADER).is_file():
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return target
