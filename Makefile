@@ -29,6 +29,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_render.py
 	$(PY) bench/bench_visibility.py
 	$(PY) bench/bench_terrain.py
+	$(PY) bench/bench_fog.py
 
 # Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.
 proto: $(STAMP)

@@ -30,7 +30,6 @@ the first call). Writes bench/results/terrain.json (the record) and bench/result
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import dataclasses
 import datetime as dt
@@ -51,7 +50,8 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-RESULTS = Path(__file__).resolve().parent / "results"
+from common import bench_parser, replot  # bench/ is on the path when run as a script
+
 #: The issue's channel: 1280 x 1024, 60 degrees across, square pixels, 4 samples (rgss4).
 WIDTH, HEIGHT, FOV_H_DEG, SAMPLES = 1280, 1024, 60.0, "rgss4"
 PITCHES_DEG = (-90, -60, -45, -30, -20, -10, -5, 0)
@@ -153,24 +153,11 @@ def preimage_oversample(value: float) -> Iterator[None]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark; returns the process exit status."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--repeats", type=int, default=None,
-                        help="timed calls per case after one warm-up; the median is kept "
-                             "(default 5; the bias grid 3; --quick 1)")
-    parser.add_argument("--quick", action="store_true",
-                        help="fewer cells, settings and views, a 160 x 128 error raster, one "
-                             "repeat: checks the bench runs; not a measurement")
-    parser.add_argument("--cpu", type=int, default=None,
-                        help="the CPU to run on (default: the lowest this process may use)")
-    parser.add_argument("--out", type=Path, default=RESULTS,
-                        help=f"results folder (default {RESULTS})")
-    parser.add_argument("--replot", action="store_true",
-                        help="only redraw terrain.png (and reprint the tables) from terrain.json")
+    parser = bench_parser(__doc__, "terrain", "default 5; the bias grid 3; --quick 1",
+                          "fewer cells, settings and views, a 160 x 128 error raster, one "
+                          "repeat: checks the bench runs; not a measurement")
     args = parser.parse_args(argv)
-    if args.replot:
-        record = json.loads((args.out / "terrain.json").read_text(encoding="utf-8"))
-        print_report(record)
-        plot(record, args.out / "terrain.png")
+    if replot(args, "terrain", print_report, plot):
         return 0
     quick = args.quick
     repeats = args.repeats if args.repeats is not None else (QUICK["repeats"] if quick else 5)
@@ -178,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--repeats must be at least 1")
     bias_repeats = args.repeats if args.repeats is not None else (1 if quick else 3)
 
-    from bench_visibility import pin_to_one_cpu  # bench/ is on the path when run as a script
+    from common import pin_to_one_cpu
 
     cpu = pin_to_one_cpu(args.cpu)  # before numba starts its threads
     import numba

@@ -37,6 +37,8 @@ import numpy as np
 # Runnable from a plain checkout too (`python bench/bench_visibility.py` puts bench/ first).
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from common import pin_to_one_cpu  # bench/ is on the path when run as a script
+
 RESULTS = Path(__file__).resolve().parent / "results"
 PATTERNS = ("centre", "rgss4", "d3d8", "d3d16")
 SUBAREAS = (8, 16, 32)
@@ -47,17 +49,6 @@ SUPERSAMPLE = 4
 TARGET_RATIO = 3.0
 TARGET_FPS = 60.0
 QUICK = {"repeats": 2, "subareas": (16,), "supersample": 2, "llvmpipe_frames": 3}
-
-
-def pin_to_one_cpu(cpu: int | None) -> int | None:
-    """Pin this process to one CPU (default: the lowest it may use) before any worker thread
-    starts, so numba's pool and everything else share that core. Returns the CPU, or None where
-    the platform cannot pin."""
-    if not hasattr(os, "sched_setaffinity"):
-        return None
-    cpu = min(os.sched_getaffinity(0)) if cpu is None else cpu
-    os.sched_setaffinity(0, {cpu})
-    return cpu
 
 
 def box_downsample(rgb: np.ndarray, factor: int) -> np.ndarray:

@@ -678,7 +678,8 @@ def build_scene() -> dict[str, Any]:
 
 def build_terrain_scene() -> dict[str, Any]:
     """The airfield on the bundled Jacksboro terrain (its pad flattened to z = 0 under the
-    airfield, channel_worker/terrain/bundled.py), in a light summer haze."""
+    airfield, channel_worker/terrain/bundled.py), in a light summer haze, with morning mist
+    lying in the valleys below it."""
     doc = build_scene()
     doc["name"] = "bundled airfield on the Jacksboro terrain"
     doc["terrain"] = {"database": "bundled:jacksboro", "polygon_margin_m": 1.0}
@@ -688,6 +689,10 @@ def build_terrain_scene() -> dict[str, Any]:
     doc["clouds"] = {"extent_m": [-30000.0, -30000.0, 30000.0, 30000.0], "cell_m": 400.0,
                      "base_m": 1100.0, "thickness_m": 700.0, "cover": 0.3,
                      "extinction_per_m": 0.02, "colour": "#f4f6fa", "seed": 7}
+    # Seed 004's layered fog: mist 1.2 km visibility in the lowest valleys (120 m below the
+    # runway), thinning to clear air 40 m above it.
+    doc["fog"] = {"origin_m": [0.0, 0.0, -120.0], "spacing_m": 40.0,
+                  "visibility_m": [1200.0, 2500.0, 6000.0, 20000.0, None], "colour": "#d4d8dc"}
     return doc
 
 

@@ -1,7 +1,7 @@
 """numba kernel of the cloud scan (see clouds.py): the coarse cloud pre-image.
 
-Cloud texel channels: premultiplied linear RGB (after haze), opacity, and the range at which
-the texel's ray enters cloud (+inf where it meets none).
+Cloud texel channels: premultiplied linear RGB (after haze and fog), opacity, and the range at
+which the texel's ray enters cloud (+inf where it meets none).
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ import numpy as np
 from numba import njit, prange
 
 from ._terrain_kernels import ground_ray_span
+from .fog import F_ON, F_WORLD_AXIS, fog_blend
 from .haze import haze_amount
 
 #: A ray that has kept less than this of its light is opaque: its row stops integrating.
@@ -19,15 +20,17 @@ _OPAQUE_T = 0.004
 
 
 @njit(cache=True, inline="always")
-def through_air(haze, cloud_on, cloud, y, x, range_m, sin_el, r, g, b):
-    """A polygon's colour seen at range_m along a ray of elevation sine sin_el: through the
-    haze (haze_params), then through pixel (x, y)'s cloud (Background.cloud) if the polygon
-    lies beyond the cloud's entry range."""
-    if haze[0] != 0.0:
-        h = haze_amount(haze, range_m, sin_el)
-        r = r * (1.0 - h) + haze[3] * h
-        g = g * (1.0 - h) + haze[4] * h
-        b = b * (1.0 - h) + haze[5] * h
+def through_air(air, cloud_on, cloud, y, x, range_m, sin_el, cos_ax, r, g, b):
+    """A polygon's colour seen at range_m along a ray of elevation sine sin_el and fog-axis
+    cosine cos_ax: through the haze and the fog (air.air_params), then through pixel (x, y)'s
+    cloud (Background.cloud) if the polygon lies beyond the cloud's entry range."""
+    if air[0] != 0.0:
+        h = haze_amount(air, range_m, sin_el)
+        r = r * (1.0 - h) + air[3] * h
+        g = g * (1.0 - h) + air[4] * h
+        b = b * (1.0 - h) + air[5] * h
+    if air[F_ON] != 0.0:
+        r, g, b = fog_blend(air, range_m, cos_ax, r, g, b)
     if cloud_on and cloud[y, x, 3] > 0.0 and range_m > cloud[y, x, 4]:
         keep = 1.0 - cloud[y, x, 3]
         r = cloud[y, x, 0] + keep * r
@@ -44,7 +47,8 @@ def _bilinear(a, iy, ix, u, v):
 
 @njit(cache=True, parallel=True)
 def scan_clouds_kernel(base, top, density, cell, eye, colour, base_shade, phi_lo, dphi, ncols,
-                       row_tan, row_inv_cos, row_sin, r_far, haze, out):
+                       row_tan, row_inv_cos, row_sin, r_far, air, out):
+    # air: the air array (air.air_params): haze, then fog.
     """One radial scan across the cloud grid per coarse column (azimuth phi_lo + (j + 1/2)
     dphi), integrating every coarse row's ray (elevation tangent row_tan[i]) through the
     clouds front to back.
@@ -70,6 +74,9 @@ def scan_clouds_kernel(base, top, density, cell, eye, colour, base_shade, phi_lo
         trans = np.ones(nrows)
         acc = np.zeros((nrows, 3))
         entry = np.full(nrows, np.inf)
+        # The column's rays' fog-axis cosine is ax_h cos(elevation) + ax_z sin(elevation).
+        ax_h = air[F_WORLD_AXIS] * dx + air[F_WORLD_AXIS + 1] * dy
+        ax_z = air[F_WORLD_AXIS + 2]
         r_lo, r_hi = ground_ray_span(ex, ey, dx, dy, extent_x, extent_y, 0.0, r_far)
         inv_dx = 1.0 / dx if dx != 0.0 else 0.0  # guard: that family of lines is never crossed
         inv_dy = 1.0 / dy if dy != 0.0 else 0.0
@@ -134,11 +141,15 @@ def scan_clouds_kernel(base, top, density, cell, eye, colour, base_shade, phi_lo
                         cr = colour[0] * shade
                         cg = colour[1] * shade
                         cb = colour[2] * shade
-                        if haze[0] != 0.0:
-                            hz = haze_amount(haze, rng, row_sin[i])
-                            cr = cr * (1.0 - hz) + haze[3] * hz
-                            cg = cg * (1.0 - hz) + haze[4] * hz
-                            cb = cb * (1.0 - hz) + haze[5] * hz
+                        if air[0] != 0.0:
+                            hz = haze_amount(air, rng, row_sin[i])
+                            cr = cr * (1.0 - hz) + air[3] * hz
+                            cg = cg * (1.0 - hz) + air[4] * hz
+                            cb = cb * (1.0 - hz) + air[5] * hz
+                        if air[F_ON] != 0.0:
+                            sn = row_sin[i]
+                            cos_ax = ax_h * math.sqrt(max(1.0 - sn * sn, 0.0)) + ax_z * sn
+                            cr, cg, cb = fog_blend(air, rng, cos_ax, cr, cg, cb)
                         w = trans[i] * a
                         acc[i, 0] += w * cr
                         acc[i, 1] += w * cg

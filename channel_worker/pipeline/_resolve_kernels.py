@@ -8,31 +8,33 @@ import numpy as np
 from numba import njit, prange
 
 from ._cloud_kernels import through_air
+from .fog import F_ON, fog_cos
 from .types import BACKGROUND_ID, EARTH_ID
 
 
 @njit(cache=True, inline="always")
-def _polygon_colour(p, y, x, s, colour, haze, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on, cloud):
-    """Colour of polygon p at sample s of pixel (x, y); with haze (haze[0] != 0) seen through
-    it at the polygon's range there (1/z from its exact depth plane), and through the pixel's
+def _polygon_colour(p, y, x, s, colour, air, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on, cloud):
+    """Colour of polygon p at sample s of pixel (x, y); with haze or fog (air: air.air_params)
+    seen through it at the polygon's range there (1/z from its exact depth plane), and through the pixel's
     cloud if that range lies beyond the cloud's entry range."""
     r, g, b = colour[p, 0], colour[p, 1], colour[p, 2]
-    if haze[0] == 0.0 and not cloud_on:
+    if air[0] == 0.0 and air[F_ON] == 0.0 and not cloud_on:
         return r, g, b
     a = tx[x, s]
     c = ty[y, s]
     ray = math.sqrt(a * a + c * c + 1.0)
     iz = inv_z[p, 0] * sxs[x, s] + (inv_z[p, 1] * sys_[y, s] + inv_z[p, 2])
     # Guards: polygons are clipped to z >= near > 0 (1/z > 0); ray >= 1.
-    return through_air(haze, cloud_on, cloud, y, x, ray / max(iz, 1e-300),
-                       (dz_row[0] * a + dz_row[1] * c + dz_row[2]) / ray, r, g, b)
+    return through_air(air, cloud_on, cloud, y, x, ray / max(iz, 1e-300),
+                       (dz_row[0] * a + dz_row[1] * c + dz_row[2]) / ray,
+                       fog_cos(air, a, c, ray), r, g, b)
 
 
 @njit(cache=True, inline="always")
-def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth, bg_rgb, haze, inv_z, sxs,
+def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth, bg_rgb, air, inv_z, sxs,
            sys_, tx, ty, dz_row, cloud_on, cloud):
     """Linear RGB of one sample: its translucent features front to back over the opaque one,
-    each hazed by its own range when haze[0] != 0."""
+    each seen through the air (haze, fog) at its own range."""
     r = np.float32(0.0)
     g = np.float32(0.0)
     b = np.float32(0.0)
@@ -40,7 +42,7 @@ def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth, bg_rgb, h
     for q in range(count[y, x, s]):
         p = trans[y, x, s, q]
         a = opacity[p] * through
-        cr, cg, cb = _polygon_colour(p, y, x, s, colour, haze, inv_z, sxs, sys_, tx, ty, dz_row,
+        cr, cg, cb = _polygon_colour(p, y, x, s, colour, air, inv_z, sxs, sys_, tx, ty, dz_row,
                                      cloud_on, cloud)
         r += a * cr
         g += a * cg
@@ -48,7 +50,7 @@ def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth, bg_rgb, h
         through *= np.float32(1.0) - opacity[p]
     f = opaque[y, x, s]
     if f >= 0:
-        cr, cg, cb = _polygon_colour(f, y, x, s, colour, haze, inv_z, sxs, sys_, tx, ty, dz_row,
+        cr, cg, cb = _polygon_colour(f, y, x, s, colour, air, inv_z, sxs, sys_, tx, ty, dz_row,
                                      cloud_on, cloud)
         return r + through * cr, g + through * cg, b + through * cb
     if f == BACKGROUND_ID:
@@ -80,7 +82,7 @@ def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above, bg_r
 
 @njit(cache=True, parallel=True)
 def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
-               height_above, want_range, bg_rgb, bg_range, haze, inv_z, sxs, sys_, cloud_on,
+               height_above, want_range, bg_rgb, bg_range, air, inv_z, sxs, sys_, cloud_on,
                cloud, out_rgb, out_range):
     """Shade and average the samples of each pixel in one pass (no sample colour buffer).
 
@@ -97,7 +99,7 @@ def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth,
                 if opaque[y, x, s] != f0 or count[y, x, s] != 0:
                     uniform = False
                     break
-            if uniform and (haze[0] != 0.0 or cloud_on or f0 == BACKGROUND_ID):
+            if uniform and (air[0] != 0.0 or air[F_ON] != 0.0 or cloud_on or f0 == BACKGROUND_ID):
                 uniform = False  # hazed colours vary per sample; the background per pixel
             if uniform:
                 if f0 >= 0:
@@ -115,7 +117,7 @@ def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth,
                 b = np.float32(0.0)
                 for s in range(s_count):
                     sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth,
-                                        bg_rgb, haze, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on,
+                                        bg_rgb, air, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on,
                                         cloud)
                     r += sr
                     g += sg
@@ -130,7 +132,7 @@ def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth,
 
 @njit(cache=True, parallel=True)
 def shade_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
-                 height_above, want_range, bg_rgb, bg_range, haze, inv_z, sxs, sys_, cloud_on,
+                 height_above, want_range, bg_rgb, bg_range, air, inv_z, sxs, sys_, cloud_on,
                  cloud, out_samples, out_range):
     """Every sample's colour, for filters that also read neighbouring pixels' samples."""
     h, w, s_count = opaque.shape
@@ -138,7 +140,7 @@ def shade_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, eart
         for x in range(w):
             for s in range(s_count):
                 sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth,
-                                    bg_rgb, haze, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on,
+                                    bg_rgb, air, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on,
                                     cloud)
                 out_samples[y, x, s, 0] = sr
                 out_samples[y, x, s, 1] = sg

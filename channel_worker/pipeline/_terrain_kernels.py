@@ -1,6 +1,6 @@
 """numba kernels of the terrain stage (see terrain.py): the radial column scan and the warp.
 
-Pre-image texel channels (PRE_*): premultiplied linear RGB after haze, coverage, and the
+Pre-image texel channels (PRE_*): premultiplied linear RGB after haze and fog, coverage, and the
 inverse range of the surface seen at the texel's centre elevation (0 where none is).
 """
 
@@ -11,6 +11,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .fog import F_ON, F_RGB, F_WORLD_AXIS, fog_blend, fog_cos, fog_depth
 from .haze import haze_amount
 
 PRE_R, PRE_G, PRE_B, PRE_A, PRE_IR = 0, 1, 2, 3, 4
@@ -20,7 +21,8 @@ PRE_CHANNELS = 5
 _ROW, _AR, _AG, _AB, _AW, _IR, _TMAX, _IRF = 0, 1, 2, 3, 4, 5, 6, 7
 _R1, _Z1, _R2, _Z2 = 8, 9, 10, 11  # the last segment emitted
 _TANMAX = 12  # tan of _TMAX, from the point that set it
-_STATE = 13
+_AXH = 13  # fog: the column's rays' axis cosine is _AXH cos(elevation) + axis z sin(elevation)
+_STATE = 14
 
 #: Depth of the skirt down the database's edge (metres): deep enough to reach below any
 #: horizon the scan starts from.
@@ -32,7 +34,7 @@ _WALL_DZ = 1e-3
 
 
 @njit(cache=True, inline="always")
-def _finish_row(pre, j, st, theta0, dtheta, haze):
+def _finish_row(pre, j, st, theta0, dtheta, air):
     """Write the current row of column j from the accumulators and start the next one."""
     row = int(st[_ROW])
     w = st[_AW]
@@ -40,15 +42,24 @@ def _finish_row(pre, j, st, theta0, dtheta, haze):
     g = st[_AG]
     b = st[_AB]
     ir = st[_IR]
-    if haze[0] != 0.0 and w > 0.0:
+    if (air[0] != 0.0 or air[F_ON] != 0.0) and w > 0.0:
         centre = theta0 + (row + 0.5) * dtheta
         # The surface's range at the row's centre, or (a row its surface leaves below the
         # centre) that of the surface's far end. Guard: _IRF > 0 once anything was emitted.
-        hz = haze_amount(haze, 1.0 / (ir if ir > 0.0 else st[_IRF]), math.sin(centre))
-        # Premultiplied: the haze covers the share w of the texel the terrain covers.
-        r = r * (1.0 - hz) + haze[3] * hz * w
-        g = g * (1.0 - hz) + haze[4] * hz * w
-        b = b * (1.0 - hz) + haze[5] * hz * w
+        rng = 1.0 / (ir if ir > 0.0 else st[_IRF])
+        sn = math.sin(centre)
+        if air[0] != 0.0:
+            hz = haze_amount(air, rng, sn)
+            # Premultiplied: the haze covers the share w of the texel the terrain covers.
+            r = r * (1.0 - hz) + air[3] * hz * w
+            g = g * (1.0 - hz) + air[4] * hz * w
+            b = b * (1.0 - hz) + air[5] * hz * w
+        if air[F_ON] != 0.0:
+            t = math.exp(-fog_depth(air, rng, st[_AXH] * math.cos(centre)
+                                    + air[F_WORLD_AXIS + 2] * sn))
+            r = t * r + (1.0 - t) * air[F_RGB] * w
+            g = t * g + (1.0 - t) * air[F_RGB + 1] * w
+            b = t * b + (1.0 - t) * air[F_RGB + 2] * w
     pre[j, row, PRE_R] = r
     pre[j, row, PRE_G] = g
     pre[j, row, PRE_B] = b
@@ -115,7 +126,7 @@ def _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, t, cr, cg, cb):
 
 
 @njit(cache=True)
-def _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, ta, tb, r1, z1, r2, z2,
+def _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, a, b, ta, tb, r1, z1, r2, z2,
           rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, cr, cg, cb, ca_r, ca_g, ca_b, cb_r, cb_g,
           cb_b):
     """Integrate the visible angular interval [a, b] of one surface segment into the rows.
@@ -162,7 +173,7 @@ def _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, ta, tb,
             # crest as well as whole ones.
             st[_IR] = _inverse_range_on_line(row_cs[row, 0], row_cs[row, 1], r1, z1, r2, z2)
         if e >= top:
-            _finish_row(pre, j, st, theta0, dtheta, haze)
+            _finish_row(pre, j, st, theta0, dtheta, air)
             row += 1
         # The rest of the interval starts at e with the colour there.
         a = e
@@ -245,7 +256,7 @@ def _page_of(page_table, table_offset, pages_x, pages_y, log2_page, level, ix, i
 def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x, pages_y,
                 log2_page, level_nx, level_ny, spacing, extent_x, extent_y, z_max, pat_top,
                 pat_rgb, pat_bands, lut, eye, phi_lo, dphi, ncols, theta0, dtheta, nrows,
-                r_switch, r_far, haze, row_cs, top_cs, first_row, out_pre, out_visits):
+                r_switch, r_far, air, row_cs, top_cs, first_row, out_pre, out_visits):
     """One radial scan across the ground grid per pre-image column (seed 002).
 
     Column j is the vertical half-plane through the eye at azimuth phi_lo + (j + 1/2) dphi
@@ -282,16 +293,18 @@ def scan_kernel(z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x
                 k += 1
         start = first_row[k]
         st[_ROW] = start
+        phi = phi_lo + (j + 0.5) * dphi
+        st[_AXH] = air[F_WORLD_AXIS] * math.sin(phi) + air[F_WORLD_AXIS + 1] * math.cos(phi)
         theta_lo = theta0 + start * dtheta
         st[_TMAX] = theta_lo
         out_visits[j] = _scan_column(
             j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x, pages_y,
             log2_page, level_nx, level_ny, levels, spacing, extent_x, extent_y, z_max, pat_top,
             pat_rgb, pat_bands, lut, ex, ey, ez, phi_lo, dphi, theta0, theta_lo, dtheta, nrows,
-            r_switch, r_far, haze, row_cs, top_cs, out_pre)
+            r_switch, r_far, air, row_cs, top_cs, out_pre)
         # The row the scan stopped in holds what covered it so far (a silhouette).
         if int(st[_ROW]) < nrows and st[_AW] > 0.0:
-            _finish_row(out_pre, j, st, theta0, dtheta, haze)
+            _finish_row(out_pre, j, st, theta0, dtheta, air)
         # Rows the scan never finished see nothing (texels below the column's first row are
         # fill_skipped's). The first of them keeps the last surface's inverse range continued
         # (with no coverage): the warp interpolates between it and the last covered row,
@@ -339,7 +352,7 @@ def fill_skipped(pre, first_row, full):
 def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset, pages_x,
                  pages_y, log2_page, level_nx, level_ny, levels, spacing, extent_x, extent_y,
                  z_max, pat_top, pat_rgb, pat_bands, lut, ex, ey, ez, phi_lo, dphi, theta0,
-                 theta_lo, dtheta, nrows, r_switch, r_far, haze, row_cs, top_cs, pre):
+                 theta_lo, dtheta, nrows, r_switch, r_far, air, row_cs, top_cs, pre):
     phi = phi_lo + (j + 0.5) * dphi
     dx = math.sin(phi)
     dy = math.cos(phi)
@@ -454,7 +467,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             have_prev = True
             z_prev = z_in
             if z_in > r * tan_max:
-                _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages, lut,
+                _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, rgb_pages, lut,
                       r, z_in - _SKIRT_M, z_in,
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 0),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 1),
@@ -464,7 +477,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             cached = False  # the surface jumps here: nothing of the last voxel carries over
             if z_in > z_prev and z_in > r * tan_max:
                 # A step up between voxels (a cliff, a building edge): a vertical wall at r.
-                _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages, lut,
+                _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, rgb_pages, lut,
                       r, z_prev, z_in,
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 0),
                       _corner_rgb(rgb_pages, lut, page, vy, vx, u0, v0, 1),
@@ -483,7 +496,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             for band in range(pat_bands[k]):
                 hi = top + pat_top[k, band]
                 if hi > r * tan_max:
-                    _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages,
+                    _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, rgb_pages,
                           lut, r, lo, hi,
                           pat_rgb[k, band, 0], pat_rgb[k, band, 1], pat_rgb[k, band, 2])
                     tan_max = st[_TANMAX]
@@ -492,7 +505,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
             cg = pat_rgb[k, pat_bands[k] - 1, 1]
             cb = pat_rgb[k, pat_bands[k] - 1, 2]
             if lo > r_next * tan_max:
-                _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r, lo, r_next,
+                _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, r, lo, r_next,
                          lo, math.nan, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb,
                          cr, cg, cb)
                 tan_max = st[_TANMAX]
@@ -513,7 +526,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
                 x_r = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 0)
                 x_g = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 1)
                 x_b = _corner_rgb(rgb_pages, lut, page, vy, vx, u1, v1, 2)
-                t_out = _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r,
+                t_out = _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, r,
                                  z_in, r_next, z_out, t_in, rgb_pages, lut, page, vy, vx, u0, v0,
                                  u1, v1, e_r, e_g, e_b, x_r, x_g, x_b)
                 tan_max = st[_TANMAX]
@@ -542,7 +555,7 @@ def _scan_column(j, st, z_pages, rgb_pages, pat_pages, page_table, table_offset,
 
 
 @njit(cache=True)
-def _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages, lut, r, z_lo,
+def _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, rgb_pages, lut, r, z_lo,
           z_hi, cr, cg, cb):
     """A vertical face of constant colour at ground range r from height z_lo to z_hi
     (relative to the eye)."""
@@ -550,13 +563,13 @@ def _wall(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, rgb_pages, lu
     b = math.atan2(z_hi, r)
     a = max(a, st[_TMAX])
     if b > a:
-        _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, b, 0.0, 1.0,
+        _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, a, b, 0.0, 1.0,
               r, z_lo, r, z_hi, rgb_pages, lut, -1, 0, 0, 0.0, 0.0, 0.0, 0.0, cr, cg, cb,
               cr, cg, cb, cr, cg, cb)
 
 
 @njit(cache=True)
-def _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r1, z1, r2, z2, t1,
+def _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, r1, z1, r2, z2, t1,
              rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, c1r, c1g, c1b, c2r, c2g, c2b):
     """The surface from (r1, z1) to (r2, z2): the part rising above the current horizon.
 
@@ -593,7 +606,7 @@ def _surface(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, r1, z1, r2
         ta = _param_at(math.cos(tmax), math.sin(tmax), r1, z1, r2, z2)
         ca_r, ca_g, ca_b = _colour_at(rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, ta, c1r, c1g,
                                       c1b)
-    _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, haze, a, hi, 0.0, t_hi,
+    _emit(pre, j, st, nrows, theta0, dtheta, row_cs, top_cs, air, a, hi, 0.0, t_hi,
           r1, z1, r2, z2, rgb_pages, lut, page, vy, vx, u0, v0, u1, v1, c1r, c1g, c1b,
           ca_r, ca_g, ca_b, cb_r, cb_g, cb_b)
     return t_far
@@ -617,7 +630,7 @@ def _map_point(sx, sy, m, mapping, phi_lo, dphi, span, full, theta0, dtheta):
 
 @njit(cache=True, parallel=True)
 def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height,
-                horizon, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0,
+                horizon, dz_row, height_above, sky, earth, air, sky_haze, sky_haze_t0,
                 sky_haze_dt, margin_m, block,
                 cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile, depth_need,
                 out_rgb, out_iz, out_range, out_cloud):
@@ -667,7 +680,7 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
             if ok:
                 _warp_block(x0, y0, block, False, c00, c10, c01, c11, r00, r10, r01, r11,
                             pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
-                            k0, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0, sky_haze_dt,
+                            k0, dz_row, height_above, sky, earth, air, sky_haze, sky_haze_t0, sky_haze_dt,
                             margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
                             tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
                             out_rgb, out_iz, out_range, out_cloud)
@@ -682,7 +695,7 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                     qx0, qy0, half, m, mapping, phi_lo, dphi, span, full, theta0, dtheta, ncols)
                 _warp_block(qx0, qy0, half, not ok, c00, c10, c01, c11, r00, r10, r01, r11,
                             pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
-                            k0, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0, sky_haze_dt,
+                            k0, dz_row, height_above, sky, earth, air, sky_haze, sky_haze_t0, sky_haze_dt,
                             margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
                             tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
                             out_rgb, out_iz, out_range, out_cloud)
@@ -712,7 +725,7 @@ def _block_corners(x0, y0, size, m, mapping, phi_lo, dphi, span, full, theta0, d
 
 @njit(cache=True)
 def _warp_block(x0, y0, size, exact, c00, c10, c01, c11, r00, r10, r01, r11, pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
-                k0, dz_row, height_above, sky, earth, haze, sky_haze, sky_haze_t0, sky_haze_dt,
+                k0, dz_row, height_above, sky, earth, air, sky_haze, sky_haze_t0, sky_haze_dt,
                 margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
                 tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
                 out_rgb, out_iz, out_range, out_cloud):
@@ -759,21 +772,28 @@ def _warp_block(x0, y0, size, exact, c00, c10, c01, c11, r00, r10, r01, r11, pre
                 # Guard: ez < 0 below the horizon; at it rounding may give 0 or a
                 # tiny positive: the range becomes huge, never negative.
                 earth_range = ray * height_above / max(-ez, 1e-300)
-            if haze[0] != 0.0 and alpha < 1.0:
+            if air[0] != 0.0 and alpha < 1.0:
                 # Only what the terrain leaves uncovered needs it. The sky's haze
                 # depends on elevation alone: from the per-row table.
                 if n_earth > 0:
-                    he = haze_amount(haze, earth_range, min(sin_el, -1e-9))
-                    er = er * (1.0 - he) + haze[3] * he
-                    eg = eg * (1.0 - he) + haze[4] * he
-                    eb = eb * (1.0 - he) + haze[5] * he
+                    he = haze_amount(air, earth_range, min(sin_el, -1e-9))
+                    er = er * (1.0 - he) + air[3] * he
+                    eg = eg * (1.0 - he) + air[4] * he
+                    eb = eb * (1.0 - he) + air[5] * he
                 if n_earth < s_count:
                     q0, q1, fq = _rows((theta0 + (rr + 0.5) * dtheta - sky_haze_t0)
                                        / sky_haze_dt - 0.5, sky_haze.shape[0])
                     hs = sky_haze[q0] + (sky_haze[q1] - sky_haze[q0]) * fq
-                    sr = sr * (1.0 - hs) + haze[3] * hs
-                    sg = sg * (1.0 - hs) + haze[4] * hs
-                    sb = sb * (1.0 - hs) + haze[5] * hs
+                    sr = sr * (1.0 - hs) + air[3] * hs
+                    sg = sg * (1.0 - hs) + air[4] * hs
+                    sb = sb * (1.0 - hs) + air[5] * hs
+            if air[F_ON] != 0.0 and alpha < 1.0:
+                # The fog depends on the ray's axis cosine (any axis): per pixel.
+                cos_ax = fog_cos(air, tx, ty, ray)
+                if n_earth > 0:
+                    er, eg, eb = fog_blend(air, earth_range, cos_ax, er, eg, eb)
+                if n_earth < s_count:
+                    sr, sg, sb = fog_blend(air, math.inf, cos_ax, sr, sg, sb)
             fe = n_earth * inv_s
             keep = 1.0 - alpha
             pr = w00 * pre[c0, r0, PRE_R] + w10 * pre[c1, r0, PRE_R] + w01 * pre[c0, r1, PRE_R] + w11 * pre[c1, r1, PRE_R]

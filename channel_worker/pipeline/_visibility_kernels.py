@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from ._cloud_kernels import through_air
+from .fog import F_ON, fog_cos
 from .types import BACKGROUND_ID, EARTH_ID, SKY_ID
 
 #: Relative margin on the early stop of a sub-area list: 1/z at a sample inside a polygon
@@ -44,7 +45,7 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
                       layer, off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
                       out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
                       fused, colour, sky, earth, dz_row, height_above, out_rgb, bg_on, bg_rgb,
-                      bg_iz, bg_range, haze, cloud_on, cloud):
+                      bg_iz, bg_range, air, cloud_on, cloud):
     """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
@@ -66,8 +67,8 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
     bg_on: the frame has a Background (terrain stage): every sample starts out holding it as
     its nearest opaque feature (BACKGROUND_ID at bg_iz, nothing where bg_iz is 0), so polygons
     behind the terrain are hidden and a list stops early behind a hill; what no polygon covers
-    takes the background's colour bg_rgb and range bg_range. haze: haze_params (polygons are
-    hazed per sample by their range when haze[0] != 0). cloud_on: cloud (H, W, 5) holds each
+    takes the background's colour bg_rgb and range bg_range. air: air.air_params (polygons are
+    seen through the haze and fog per sample at their range when air has either). cloud_on: cloud (H, W, 5) holds each
     pixel's cloud (Background.cloud), laid over every polygon sample beyond its entry range.
     """
     n_tiles = tile_start.shape[0] - 1
@@ -100,7 +101,7 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
                   out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
                   o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
                   fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step, bg_on,
-                  bg_rgb, bg_iz, bg_range, haze, cloud_on, cloud)
+                  bg_rgb, bg_iz, bg_range, air, cloud_on, cloud)
 
 
 @njit(cache=True)
@@ -110,7 +111,7 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
           out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
           o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
           fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step, bg_on, bg_rgb,
-          bg_iz, bg_range, haze, cloud_on, cloud):
+          bg_iz, bg_range, air, cloud_on, cloud):
     """One sub-area of visibility_kernel, with the chunk's sample store as scratch."""
     tx0, ty0, tx1, ty1 = _subarea_rect(t, tiles_x, size, width, height)
     tw = tx1 - tx0
@@ -276,8 +277,8 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
                 break
         if uniform < 0 and uniform != _MIXED:
             uniform = background if background != 0 else _MIXED
-        if haze[0] != 0.0 or cloud_on:
-            uniform = _MIXED  # hazed or clouded colours vary with range
+        if air[0] != 0.0 or air[F_ON] != 0.0 or cloud_on:
+            uniform = _MIXED  # hazed, fogged or clouded colours vary with range
         if uniform != _MIXED and not want_range:
             if uniform >= 0:
                 cr, cg, cb = colour[uniform, 0], colour[uniform, 1], colour[uniform, 2]
@@ -294,7 +295,7 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
         _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon,
                     mapping, background, want_range, o_iz, o_id, t_iz, t_id, t_cnt,
                     any_translucent, opacity, colour, sky, earth, dz_row, height_above, out_rgb,
-                    out_range, bg_on, bg_rgb, bg_range, haze, cloud_on, cloud)
+                    out_range, bg_on, bg_rgb, bg_range, air, cloud_on, cloud)
         return
     for y in range(ty0, ty1):
         sy_row = (y * subpixel) * inv_sub
@@ -451,13 +452,13 @@ def _fill_background(tx0, ty0, tx1, ty1, background, sky, earth, want_range, out
 def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon, mapping,
                 background, want_range, o_iz, o_id, t_iz, t_id, t_cnt, any_translucent, opacity,
                 colour, sky, earth, dz_row, height_above, out_rgb, out_range, bg_on, bg_rgb,
-                bg_range, haze, cloud_on, cloud):
+                bg_range, air, cloud_on, cloud):
     """Pixel outputs of one sub-area: each sample shaded (translucent features front to back
     over the opaque one, or the background: terrain, sky, earth), averaged over the pixel;
     optionally the range. With haze each polygon sample is hazed by its own range, and with
     clouds seen through the pixel's cloud if it lies beyond the cloud's entry range."""
-    hazy = haze[0] != 0.0
-    by_range = hazy or cloud_on
+    fogged = air[F_ON] != 0.0
+    by_range = air[0] != 0.0 or fogged or cloud_on
     kx, ky, k0 = horizon[0], horizon[1], horizon[2]
     sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
     inv_s = 1.0 / s_count
@@ -488,10 +489,11 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
                         rx = ((x + 0.5) - sx_off) / sx_scale
                         ry = ((y + 0.5) - sy_off) / sy_scale
                         ray = math.sqrt(rx * rx + ry * ry + 1.0)
+                        cos_ax = fog_cos(air, rx, ry, ray) if fogged else 0.0
                         # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
-                        cr, cg, cb = through_air(haze, cloud_on, cloud, y, x, ray * s_count / iz,
+                        cr, cg, cb = through_air(air, cloud_on, cloud, y, x, ray * s_count / iz,
                                                  (dz_row[0] * rx + dz_row[1] * ry + dz_row[2]) / ray,
-                                                 colour[f0, 0], colour[f0, 1], colour[f0, 2])
+                                                 cos_ax, colour[f0, 0], colour[f0, 1], colour[f0, 2])
                         out_rgb[y, x, 0] = cr
                         out_rgb[y, x, 1] = cg
                         out_rgb[y, x, 2] = cb
@@ -517,11 +519,14 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
                 through = 1.0
                 ray = 1.0
                 sin_el = 0.0
+                cos_ax = 0.0
                 if by_range:
                     rx = ((x * subpixel + off_fixed[s, 0]) * inv_sub - sx_off) / sx_scale
                     ry = ((y * subpixel + off_fixed[s, 1]) * inv_sub - sy_off) / sy_scale
                     ray = math.sqrt(rx * rx + ry * ry + 1.0)
                     sin_el = (dz_row[0] * rx + dz_row[1] * ry + dz_row[2]) / ray  # guard: ray >= 1
+                    if fogged:
+                        cos_ax = fog_cos(air, rx, ry, ray)
                 if any_translucent:
                     for q in range(t_cnt[i]):
                         p = t_id[i, q]
@@ -529,8 +534,8 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
                         cr, cg, cb = colour[p, 0], colour[p, 1], colour[p, 2]
                         if by_range:
                             # Guard: translucent features are clipped to z >= near > 0 too.
-                            cr, cg, cb = through_air(haze, cloud_on, cloud, y, x, ray / t_iz[i, q],
-                                                  sin_el, cr, cg, cb)
+                            cr, cg, cb = through_air(air, cloud_on, cloud, y, x, ray / t_iz[i, q],
+                                                     sin_el, cos_ax, cr, cg, cb)
                         r += a * cr
                         g += a * cg
                         b += a * cb
@@ -539,8 +544,8 @@ def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, h
                 if f >= 0:
                     cr, cg, cb = colour[f, 0], colour[f, 1], colour[f, 2]
                     if by_range:
-                        cr, cg, cb = through_air(haze, cloud_on, cloud, y, x, ray / o_iz[i], sin_el,
-                                              cr, cg, cb)
+                        cr, cg, cb = through_air(air, cloud_on, cloud, y, x, ray / o_iz[i], sin_el,
+                                                 cos_ax, cr, cg, cb)
                     r += through * cr
                     g += through * cg
                     b += through * cb

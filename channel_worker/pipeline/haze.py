@@ -22,6 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+#: Length of haze_params' block (the first slots of the kernels' "air" array, air.py).
+HAZE_SLOTS = 7
+
 #: Beyond this optical depth a surface is 99.9 % haze: the terrain scan stops there.
 OPAQUE_TAU = 7.0
 
@@ -48,7 +51,7 @@ def haze_params(haze: Haze | None, eye_z: float) -> np.ndarray:
 
     All zero when there is no haze (the kernels test params[0] once).
     """
-    out = np.zeros(7, np.float64)
+    out = np.zeros(HAZE_SLOTS, np.float64)
     if haze is None:
         return out
     inv_hs = 0.0 if math.isinf(haze.scale_height_m) else 1.0 / haze.scale_height_m

@@ -86,10 +86,10 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
     with clock("view"):
         view = make_view(channel, eyepoint)
     atmosphere = (database.terrain is not None or database.haze is not None
-                  or database.clouds is not None)
+                  or database.clouds is not None or database.fog is not None)
     if renderer == "scanline" and atmosphere:
         raise ValueError("renderer: the scanline renderer (a cross-check of the polygon "
-                         "visibility) draws no terrain, haze or clouds; use \"subarea\"")
+                         "visibility) draws no terrain, haze, fog or clouds; use \"subarea\"")
     with clock("cull"):
         draws = cull(database, view)
     with clock("transform"):
@@ -105,9 +105,10 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, *
             edges = setup_edges(screen, view.width, view.height)
         with clock("binning"):
             bins = bin_features(edges, screen.start, view.width, view.height, subarea)
-        # The terrain (and the hazed sky, clouds) before the visibility: the polygons are
-        # depth-tested against it, so it needs per-sample depth only in the sub-areas that
-        # hold polygons. A scene without terrain, haze or clouds skips the stage.
+        # The terrain (and the sky and earth through haze and fog, clouds) before the
+        # visibility: the polygons are depth-tested against it, so it needs per-sample depth
+        # only in the sub-areas that hold polygons. A scene without terrain, haze, fog or
+        # clouds skips the stage.
         if atmosphere:
             with clock("terrain"):
                 background = render_terrain(database, view, offsets, level_bias=terrain_bias,

@@ -7,7 +7,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ._resolve_kernels import box_kernel, filter_kernel, shade_kernel
-from .haze import haze_params
+from .air import air_params
 from .horizon import earth_dz_row, height_above_earth
 from .project import screen_mapping
 from .types import (Background, Database, Image, SampleBuffer, ScreenPolygons, View,
@@ -69,7 +69,7 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
         filter: name in FILTERS.
         out: optional (H, W, 3) float32 array to write the colours into.
         background: the terrain stage's output the store's BACKGROUND_ID samples refer to;
-            with the database's haze, polygon samples are hazed by their range.
+            with the database's haze or fog, polygon samples are seen through it at their range.
 
     Returns:
         Image with linear RGB and range in metres (+inf where every sample sees sky), the
@@ -90,7 +90,7 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
     args = (buffer.opaque, buffer.translucent, buffer.translucent_count, polygon_range,
             screen.colour, screen.opacity, database.sky_colour, database.earth_colour, tx, ty,
             earth_dz_row(view), height_above_earth(database, view), want_range, bg_rgb, bg_range,
-            haze_params(database.haze, float(view.eye[2])), screen.inv_z, sxs, sys_, cloud_on,
+            air_params(database, view), screen.inv_z, sxs, sys_, cloud_on,
             cloud)
     if filter == "box":
         box_kernel(*args, rgb, range_m)

@@ -13,6 +13,7 @@ import numpy as np
 
 from .geometry import hpr_matrix
 from .clouds import Clouds, cloud_layer
+from .fog import KOSCHMIEDER, MAX_FOG_PLANES, Fog
 from .haze import Haze
 from .types import Database, FaceTable, Model
 
@@ -116,7 +117,7 @@ class _Parser:
 
     def database(self, doc: Any) -> Database:
         doc = self.obj(doc, "", {"format", "sky", "earth", "models", "instances"},
-                       {"name", "lighting", "terrain", "haze", "clouds"})
+                       {"name", "lighting", "terrain", "haze", "clouds", "fog"})
         if doc["format"] != FORMAT:
             raise self.fail("format", f"{_show(doc['format'])} is not {FORMAT!r}")
         sky = self.obj(doc["sky"], "sky", {"colour"}, set())
@@ -171,6 +172,7 @@ class _Parser:
             **self.terrain(doc.get("terrain")),
             haze=self.haze(doc.get("haze")),
             clouds=self.clouds(doc.get("clouds")),
+            fog=self.fog(doc.get("fog")),
         )
 
     def clouds(self, doc: Any) -> Clouds | None:
@@ -240,6 +242,40 @@ class _Parser:
         return Haze(visibility_m=vis, scale_height_m=scale,
                     base_height_m=self.number(doc.get("base_height_m", 0.0), "haze.base_height_m"),
                     colour=self.colour(doc["colour"], "haze.colour"))
+
+    def fog(self, doc: Any) -> Fog | None:
+        """The optional "fog" key: seed 004's strata, by extinction or by visibility per plane."""
+        if doc is None:
+            return None
+        doc = self.obj(doc, "fog", {"colour"}, {"axis", "origin_m", "spacing_m", "extinction_per_m",
+                                                "visibility_m", "table_spacing_m"})
+        if ("extinction_per_m" in doc) == ("visibility_m" in doc):
+            raise self.fail("fog", "give the strata as exactly one of \"extinction_per_m\" and "
+                                   "\"visibility_m\" (a list, one value per sample plane)")
+        key = "extinction_per_m" if "extinction_per_m" in doc else "visibility_m"
+        values = doc[key]
+        if not isinstance(values, list) or not 1 <= len(values) <= MAX_FOG_PLANES:
+            raise self.fail(f"fog.{key}", f"expected a list of 1 to {MAX_FOG_PLANES} values, got "
+                                          f"{_show(values)}")
+        if key == "extinction_per_m":
+            sigma = [self.number(v, f"fog.{key}[{i}]", 0.0) for i, v in enumerate(values)]
+        else:
+            # Meteorological visibility (Koschmieder, 2 % contrast): sigma = 3.912 / V; null is
+            # clear air.
+            sigma = [0.0 if v is None else KOSCHMIEDER / self.number(v, f"fog.{key}[{i}]", 1e-3)
+                     for i, v in enumerate(values)]
+        if len(values) > 1 and "spacing_m" not in doc:
+            raise self.fail("fog.spacing_m", f"needed with {len(values)} sample planes")
+        spacing = self.number(doc.get("spacing_m", 1.0), "fog.spacing_m", 1e-3)
+        table = doc.get("table_spacing_m")
+        if table is not None:
+            table = self.number(table, "fog.table_spacing_m", 1e-3)
+        axis = self.vec3(doc.get("axis", [0.0, 0.0, 1.0]), "fog.axis")
+        if not float(np.linalg.norm(axis)) > 0.0:
+            raise self.fail("fog.axis", f"{axis.tolist()} has no direction")
+        return Fog(axis=axis, origin=self.vec3(doc.get("origin_m", [0.0, 0.0, 0.0]), "fog.origin_m"),
+                   spacing_m=spacing, extinction=np.array(sigma), table_spacing_m=table,
+                   colour=self.colour(doc["colour"], "fog.colour"))
 
     def model(self, name: str, doc: Any) -> Model:
         where = f"models.{name}"

@@ -14,7 +14,9 @@ the polygons are depth-tested against (docs/terrain.md).
    off-axis channels, so terrain seams between channels line up like polygon seams
    (_terrain_kernels.warp_kernel).
 
-A scene without terrain or haze skips the stage (render_terrain returns None).
+Haze (seed 002) and fog (seed 004) are applied to every terrain texel, the sky, the earth
+and the clouds here, with the one air array the polygon kernels use too (air.air_params).
+A scene without terrain, haze, fog or clouds skips the stage (render_terrain returns None).
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ import numpy as np
 from ._cloud_kernels import scan_clouds_kernel
 from ._terrain_kernels import PRE_CHANNELS, fill_skipped, scan_kernel, warp_kernel
 from .clouds import BASE_SHADE, CLOUD_FACTOR
-from .haze import OPAQUE_TAU, beta_at, haze_params, sky_haze_table
+from .air import air_params
+from .haze import OPAQUE_TAU, beta_at, sky_haze_table
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
 from .scene import srgb_to_linear
@@ -56,11 +59,11 @@ _SRGB_LUT = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
 def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
                    level_bias: int = DEFAULT_LEVEL_BIAS,
                    depth_tiles: tuple[int, np.ndarray] | None = None) -> Background | None:
-    """The terrain (and hazed sky and earth) every sample sees, or None if the scene has
-    neither terrain nor haze.
+    """The terrain (and the sky and earth through haze and fog, the clouds) every sample sees,
+    or None if the scene has none of terrain, haze, fog and clouds.
 
     Args:
-        database: the scene (database.terrain, database.haze, sky, earth).
+        database: the scene (database.terrain, .haze, .fog, .clouds, sky, earth).
         view: the channel's view for this frame.
         offsets: (S, 2) sample positions inside the pixel (samples.sample_pattern).
         level_bias: resolution level bias (voxel width 2**bias to 2**(bias + 1) pixels; -1 is
@@ -75,20 +78,21 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
         "terrain_eye_clamped".
     """
     terrain = database.terrain
-    if terrain is None and database.haze is None and database.clouds is None:
+    if (terrain is None and database.haze is None and database.clouds is None
+            and database.fog is None):
         return None
     check_level_bias(level_bias)
     h, w, s = view.height, view.width, offsets.shape[0]
     stats = {"terrain_voxels": 0, "terrain_columns": 0, "terrain_rows": 0,
              "terrain_eye_clamped": 0}
-    haze = haze_params(database.haze, float(view.eye[2]))
+    air = air_params(database, view)
     grid = preimage_grid(view)
     if terrain is None:
         pre = np.zeros((1, 1, PRE_CHANNELS), np.float32)
         full, phi_lo, dphi, theta0, dtheta = grid.full, grid.phi_lo, grid.span, grid.theta0, \
             grid.theta1 - grid.theta0
     else:
-        pre = _scan(database, view, grid, haze, level_bias, stats)
+        pre = _scan(database, view, grid, air, level_bias, stats)
         full, phi_lo, dphi, theta0, dtheta = grid.full, grid.phi_lo, grid.dphi, grid.theta0, \
             grid.dtheta
     if depth_tiles is None:
@@ -97,7 +101,7 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
         tile, need = int(depth_tiles[0]), np.ascontiguousarray(depth_tiles[1], np.bool_)
     cloud_on = database.clouds is not None
     if cloud_on:
-        cloud_pre, col_ratio, row_ratio = _scan_clouds(database, view, grid, haze)
+        cloud_pre, col_ratio, row_ratio = _scan_clouds(database, view, grid, air)
         cloud = np.empty((h, w, 5), np.float32)
         if terrain is None:
             # The warp's coordinates are then those of the one-texel stand-in pre-image.
@@ -112,8 +116,8 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
                 np.array(screen_mapping(view)), np.ascontiguousarray(offsets, np.float64), w, h,
                 np.array(earth_dz_screen(view)), earth_dz_row(view),
                 height_above_earth(database, view), database.sky_colour.astype(np.float32),
-                database.earth_colour.astype(np.float32), haze,
-                *_sky_haze(haze, grid), float(database.terrain_margin_m), WARP_BLOCK, cloud_on, cloud_pre, col_ratio,
+                database.earth_colour.astype(np.float32), air,
+                *_sky_haze(air, grid), float(database.terrain_margin_m), WARP_BLOCK, cloud_on, cloud_pre, col_ratio,
                 row_ratio, tile, need, rgb, inv_z, range_m, cloud)
     return Background(rgb=rgb, inv_z=inv_z, range_m=range_m, stats=stats,
                       cloud=cloud if cloud_on else None)
@@ -222,7 +226,7 @@ def _pole_inside(view: View, sign: float, margin: float) -> bool:
             and view.tan_bottom - pad <= ty <= view.tan_top + pad)
 
 
-def _scan(database: Database, view: View, grid: PreimageGrid, haze: np.ndarray, level_bias: int,
+def _scan(database: Database, view: View, grid: PreimageGrid, air: np.ndarray, level_bias: int,
           stats: dict) -> np.ndarray:
     """Run the column scans; the pre-image (ncols, nrows, PRE_CHANNELS) float32."""
     terrain = database.terrain
@@ -250,6 +254,10 @@ def _scan(database: Database, view: View, grid: PreimageGrid, haze: np.ndarray, 
         # is at least as dense as at the higher of the eye and the highest terrain point.
         top = max(float(view.eye[2]), terrain.origin[2] + terrain.z_max)
         r_far = min(r_far, OPAQUE_TAU / beta_at(database.haze, top))
+    if database.fog is not None and float(database.fog.extinction.min()) > 0.0:
+        # Likewise all fog: every path is at least as dense as the clearest stratum (slant
+        # range >= ground range). Guard: the minimum is > 0 here.
+        r_far = min(r_far, OPAQUE_TAU / float(database.fog.extinction.min()))
     log2_page = int(terrain.page_size).bit_length() - 1
     patterns = terrain.patterns
     n_pat = max(len(patterns), 1)
@@ -272,7 +280,7 @@ def _scan(database: Database, view: View, grid: PreimageGrid, haze: np.ndarray, 
                 terrain.pages_x, terrain.pages_y, log2_page, level_nx, level_ny,
                 float(terrain.spacing_m), float(nx), float(ny), float(terrain.z_max), pat_top,
                 pat_rgb, pat_bands, _SRGB_LUT, eye, grid.phi_lo, grid.dphi, grid.ncols,
-                grid.theta0, grid.dtheta, grid.nrows, r_switch, r_far, haze, row_cs, top_cs,
+                grid.theta0, grid.dtheta, grid.nrows, r_switch, r_far, air, row_cs, top_cs,
                 grid.first_row, pre, visits)
     if grid.first_row[0] > 0:  # some columns skipped rows
         fill_skipped(pre, grid.first_row, grid.full)
@@ -282,16 +290,16 @@ def _scan(database: Database, view: View, grid: PreimageGrid, haze: np.ndarray, 
     return pre
 
 
-def _sky_haze(haze: np.ndarray, grid: PreimageGrid) -> tuple[np.ndarray, float, float]:
+def _sky_haze(air: np.ndarray, grid: PreimageGrid) -> tuple[np.ndarray, float, float]:
     """Haze of the sky (range infinite) at the centre elevation of each of the view's
     pre-image rows: (table, elevation of row 0's lower edge, row height), radians."""
-    if haze[0] == 0.0:
+    if air[0] == 0.0:
         return np.zeros(1), grid.theta0, grid.theta1 - grid.theta0
-    return sky_haze_table(haze, grid.theta0, grid.dtheta, grid.nrows), grid.theta0, grid.dtheta
+    return sky_haze_table(air, grid.theta0, grid.dtheta, grid.nrows), grid.theta0, grid.dtheta
 
 
 def _scan_clouds(database: Database, view: View, grid: PreimageGrid,
-                 haze: np.ndarray) -> tuple[np.ndarray, float, float]:
+                 air: np.ndarray) -> tuple[np.ndarray, float, float]:
     """The coarse cloud image: one cloud texel per CLOUD_FACTOR x CLOUD_FACTOR pre-image
     texels (seed 002: one eighth of the linear resolution), and those two ratios."""
     clouds = database.clouds
@@ -306,7 +314,7 @@ def _scan_clouds(database: Database, view: View, grid: PreimageGrid,
     out = np.empty((ncols, nrows, 5), np.float32)
     scan_clouds_kernel(clouds.base_m, clouds.top_m, clouds.density, clouds.cell_m, eye,
                        clouds.colour, BASE_SHADE, grid.phi_lo, dphi, ncols, np.tan(centres),
-                       1.0 / np.cos(centres), np.sin(centres), float(view.far), haze, out)
+                       1.0 / np.cos(centres), np.sin(centres), float(view.far), air, out)
     return out, dphi / grid.dphi, dtheta / grid.dtheta
 
 

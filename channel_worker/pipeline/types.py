@@ -392,6 +392,7 @@ class Database:
             drawn in front of it (a runway on its pad), metres.
         haze: channel_worker.pipeline.haze.Haze or None.
         clouds: channel_worker.pipeline.clouds.Clouds or None.
+        fog: channel_worker.pipeline.fog.Fog (seed 004's layered fog) or None.
     """
 
     models: tuple[Model, ...]
@@ -411,6 +412,7 @@ class Database:
     terrain_margin_m: float = 1.0
     haze: Any = None
     clouds: Any = None
+    fog: Any = None
 
     @property
     def feature_count(self) -> int:

@@ -29,7 +29,7 @@ import numpy as np
 from ._visibility_kernels import coverage_kernel, visibility_kernel
 from .binning import DEFAULT_SUBAREA, Bins, bin_features
 from .edges import Edges, setup_edges
-from .haze import haze_params
+from .air import air_params, no_air
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
 from .types import (
@@ -74,7 +74,7 @@ def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: V
     polygon_range = np.empty((h, w) if with_range else (1, 1), np.float32)
     opaque = np.empty((h, w, s), np.int32)
     stats = _run(screen, edges, bins, view, offsets, k, any_translucent, with_range,
-                 opaque, trans, count, polygon_range, None, background, None)
+                 opaque, trans, count, polygon_range, None, background, no_air())
     return SampleBuffer(offsets=offsets, opaque=opaque, translucent=trans, translucent_count=count,
                         polygon_range=polygon_range if with_range else None, stats=stats)
 
@@ -94,8 +94,8 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
         stats: if given, receives the visibility counters.
         out: (H, W, 3) float32 array to write the colours into (a caller rendering frame after
             frame keeps one, so the pages are not faulted in anew every frame).
-        background: the terrain stage's output, or None; with the database's haze, polygons
-            are hazed per sample.
+        background: the terrain stage's output, or None; with the database's haze or fog,
+            polygons are seen through it per sample.
     """
     k = check_max_translucent(max_translucent)
     h, w = view.height, view.width
@@ -104,14 +104,14 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
     counters = _run(screen, edges, bins, view, offsets, k, bool((screen.opacity < 1.0).any()),
                     with_range, np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),
                     np.empty((1, 1, 1), np.uint8), range_m, (database, rgb), background,
-                    database.haze)
+                    air_params(database, view))
     if stats is not None:
         stats.update(counters)
     return Image(rgb=rgb, range_m=range_m if with_range else None)
 
 
 def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opaque, trans, count,
-         polygon_range, fused, background, haze) -> dict[str, int]:
+         polygon_range, fused, background, air) -> dict[str, int]:
     n_tiles = bins.tiles_x * bins.tiles_y
     dropped = np.zeros(n_tiles, np.int64)
     stopped = np.zeros(n_tiles, np.int64)
@@ -128,7 +128,7 @@ def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opa
     try:
         _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opaque, trans, count,
                 polygon_range, dropped, stopped, fused is not None, sky, earth, height, rgb,
-                background, haze_params(haze, float(view.eye[2])))
+                background, air)
     finally:
         numba.set_parallel_chunksize(previous)
     stats = dict(bins.stats)
@@ -139,7 +139,7 @@ def _run(screen, edges, bins, view, offsets, k, any_translucent, with_range, opa
 
 def _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opaque, trans, count,
             polygon_range, dropped, stopped, fused, sky, earth, height, rgb, background,
-            haze) -> None:
+            air) -> None:
     bg_on, bg_rgb, bg_iz, bg_range, cloud_on, cloud = background_arrays(background)
     visibility_kernel(bins.start, bins.polygon, bins.full, bins.size, bins.tiles_x, view.width,
                       view.height, screen.start, edges.ia, edges.ib, edges.ic, edges.bias,
@@ -149,7 +149,7 @@ def _kernel(bins, view, screen, edges, offsets, any_translucent, with_range, opa
                       np.array(screen_mapping(view)), any_translucent, with_range,
                       opaque, trans, count, polygon_range, dropped, stopped,
                       fused, screen.colour, sky, earth, earth_dz_row(view), height, rgb, bg_on, bg_rgb, bg_iz,
-                      bg_range, haze, cloud_on, cloud)
+                      bg_range, air, cloud_on, cloud)
 
 
 def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np.ndarray, *,

@@ -38,12 +38,14 @@ HILLS_ORIGIN = (-0.5 * HILLS_N * HILLS_SPACING, -0.5 * HILLS_N * HILLS_SPACING, 
 
 def scene(*, terrain=None, haze: dict | None = None, sky: str = GREY, earth: str = GREY,
           models: dict | None = None, instances: list | None = None,
-          margin_m: float | None = None) -> Database:
+          margin_m: float | None = None, fog: dict | None = None) -> Database:
     """A scene document parsed, with an in-memory terrain attached (flat lighting)."""
     doc = {"format": "ig-scene/1", "sky": {"colour": sky}, "earth": {"colour": earth},
            "lighting": {"ambient": 1.0}, "models": models or {}, "instances": instances or []}
     if haze is not None:
         doc["haze"] = haze
+    if fog is not None:
+        doc["fog"] = fog
     db = parse_scene(doc, source="<terrain test>")
     changes = {}
     if terrain is not None:

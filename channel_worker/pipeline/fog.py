@@ -1,0 +1,360 @@
+"""Non-homogeneous layered fog of seed 004 (US 5,535,374): parallel strata of extinction.
+
+The scene defines the fog in world space (docs/scene-format.md "fog") as the extinction
+coefficient sigma_k (1/metres) at equally spaced parallel sample planes: plane k lies at
+distance s_k = k * spacing from the origin along the unit axis n. Between planes sigma is
+linear; beyond the first and last plane it keeps the end value, so one plane is homogeneous
+fog. A feature at range R whose ray makes direction cosine c with the axis is seen through
+optical depth
+
+    tau = integral of sigma along the ray = R * A(d),    d = R * c,
+
+where A(d) is the average of sigma over the axis interval from the eye to distance d along it
+(the strata are parallel, so the ray's path through each stratum is its axis thickness / c).
+Its colour goes towards the fog colour: ``out = T * colour + (1 - T) * fog``, T = exp(-tau).
+
+Per frame (fog_params): the eye's axis position h_e = (eye - origin) . n in float64; the
+structure resampled onto planes through the eye, spaced table_spacing apart (an eighth of the
+sample spacing unless the scene says otherwise), far enough on both sides to pass the
+structure's ends by one spacing; and at each, the average A(d_j) from the exact integral of
+the piecewise-linear sigma (the resampling loses no thin layer: every table entry is exact,
+only the interpolation between entries is approximate), with sigma there.
+
+Per sample (fog_depth): d addresses the table. Between two entries the integral I(d) = A(d) d
+is interpolated as a cubic from its values and slopes (sigma) at both: exact where sigma is
+linear across the cell, so only the cells holding a sample plane (a kink) are approximate,
+and the error falls with the square of the table spacing. Linear interpolation of the average
+(the seed's) was measured 20 to 50 times worse: a grazing ray multiplies any error in I by
+1 / |c|, and the average of a layer seen from afar falls like 1 / d, which no straight line
+follows. The slopes are limited so the cubic never turns back. Beyond the table sigma is constant, so A(d) = sigma_end + (A_end - sigma_end) d_end / d exactly (|d| >
+|d_end| >= table_spacing > 0 there). A ray parallel to the strata has d = 0: A(0) = sigma at
+the eye, the table's own entry, so nothing divides by c and T is continuous as the ray tilts
+away. The sky (R infinite) sees R * A(R c) -> I_end / |c| on the side where the fog ends
+clear (I_end: the integral from the eye to the table's end), all fog where it does not.
+
+A scene without fog skips all of this (fog_params gives zeros; the kernels test one flag).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from .haze import HAZE_SLOTS
+from .types import View
+
+#: Layout of the fog block (fog_params): flag, colour, the axis in eye tangents (a ray (tx,
+#: ty, 1) has axis component F_AXIS . (tx, ty, 1)), the table's spacing and eye entry,
+#: sigma at the eye and beyond each end, the integrals from the eye to each end of the table,
+#: the world axis, then the table of averages.
+#: The block follows the haze's slots in the kernels' one "air" array (air.air_params), so
+#: every kernel that takes the haze takes the fog with it; the indices are into that array.
+F_ON = HAZE_SLOTS
+F_RGB = F_ON + 1
+F_AXIS = F_ON + 4
+F_INV_DT = F_ON + 7
+F_DT = F_ON + 8
+F_J0 = F_ON + 9
+F_N = F_ON + 10
+F_SIG_EYE = F_ON + 11
+F_SIG_LO = F_ON + 12
+F_SIG_HI = F_ON + 13
+F_INT_LO = F_ON + 14
+F_INT_HI = F_ON + 15
+F_WORLD_AXIS = F_ON + 16
+F_TURN_UP = F_ON + 19  # the eye's cells: where their cubic first turns back (or inf), and
+F_PEAK_UP = F_ON + 20  # its value there (I / dt) (_eye_cell_turn)
+F_TURN_DN = F_ON + 21
+F_PEAK_DN = F_ON + 22
+F_TABLE = F_ON + 23
+
+#: Extinction coefficient times meteorological visibility (Koschmieder: the distance at which
+#: a black object keeps 2 % contrast), for scenes that give the strata as visibilities.
+KOSCHMIEDER = -math.log(0.02)
+
+#: Most sample planes a scene may declare (the structure is a coarse, smooth function).
+MAX_FOG_PLANES = 100_000
+
+#: Resample planes per sample plane spacing by default (the seed spaces them equally; an
+#: eighth keeps the worst transmission error under 0.001, a fifth of an 8-bit step, at the
+#: same cost per sample and microseconds per frame: bench/README.md "Fog").
+TABLE_SUBDIVISION = 8
+
+#: Most table entries per frame: an eye far outside a finely sampled structure coarsens the
+#: table spacing instead (counted by FogTable.coarsened); 2**16 entries are 0.5 MB.
+MAX_TABLE = 1 << 16
+
+
+@dataclass(frozen=True)
+class Fog:
+    """Scene fog (docs/scene-format.md "fog").
+
+    Attributes:
+        axis: (3,) float64 unit vector perpendicular to the strata (world).
+        origin: (3,) float64 world point on sample plane 0.
+        spacing_m: distance between sample planes along the axis, metres (> 0).
+        extinction: (N,) float64 extinction coefficient at each sample plane, 1/metres (>= 0).
+        colour: (3,) float32 linear RGB of the fog.
+        table_spacing_m: spacing of the per-frame resample planes, metres (None: spacing_m /
+            TABLE_SUBDIVISION).
+    """
+
+    axis: np.ndarray
+    origin: np.ndarray
+    spacing_m: float
+    extinction: np.ndarray
+    colour: np.ndarray
+    table_spacing_m: float | None = None
+
+    def __post_init__(self) -> None:
+        axis = np.asarray(self.axis, np.float64)
+        norm = float(np.linalg.norm(axis))
+        if not (np.isfinite(axis).all() and norm > 0.0):
+            raise ValueError(f"fog.axis: expected a nonzero finite vector, got {axis.tolist()}")
+        object.__setattr__(self, "axis", axis / norm)
+        object.__setattr__(self, "origin", np.asarray(self.origin, np.float64))
+        ext = np.atleast_1d(np.asarray(self.extinction, np.float64))
+        if ext.ndim != 1 or not (np.isfinite(ext).all() and (ext >= 0.0).all()):
+            raise ValueError(f"fog.extinction_per_m: expected finite values >= 0, got {ext.tolist()}")
+        object.__setattr__(self, "extinction", ext)
+        if not (math.isfinite(self.spacing_m) and self.spacing_m > 0.0):
+            raise ValueError(f"fog.spacing_m: expected a finite value > 0, got {self.spacing_m}")
+        t = self.table_spacing_m
+        if t is not None and not (math.isfinite(t) and t > 0.0):
+            raise ValueError(f"fog.table_spacing_m: expected a finite value > 0, got {t}")
+
+
+def cumulative(fog: Fog, s: np.ndarray | float) -> np.ndarray:
+    """Integral of sigma along the axis from sample plane 0 to axis position s (metres), exact
+    for the piecewise-linear structure (negative below plane 0)."""
+    s = np.asarray(s, np.float64)
+    sig = fog.extinction
+    dx = fog.spacing_m
+    n = sig.shape[0]
+    # Integral at each sample plane (trapezoids are exact for linear pieces).
+    at_plane = np.concatenate([[0.0], np.cumsum(0.5 * (sig[1:] + sig[:-1]) * dx)])
+    top = (n - 1) * dx
+    k = np.clip(np.floor(s / dx), 0, max(n - 2, 0)).astype(np.int64)
+    inside = (s > 0.0) & (s < top)
+    t = s - k * dx
+    if n > 1:
+        slope = (sig[np.minimum(k + 1, n - 1)] - sig[k]) / dx  # guard: dx > 0 (Fog checks)
+        mid = at_plane[k] + sig[k] * t + 0.5 * slope * t * t
+    else:
+        mid = np.zeros_like(s)
+    below = sig[0] * s
+    above = at_plane[-1] + sig[-1] * (s - top)
+    return np.where(s <= 0.0, below, np.where(inside, mid, above))
+
+
+def sigma_at(fog: Fog, s: np.ndarray | float) -> np.ndarray:
+    """Extinction coefficient at axis position s (metres from plane 0), 1/metres."""
+    planes = np.arange(fog.extinction.shape[0]) * fog.spacing_m
+    return np.interp(np.asarray(s, np.float64), planes, fog.extinction)
+
+
+@dataclass(frozen=True)
+class FogTable:
+    """One frame's fog for the kernels.
+
+    Attributes:
+        params: float64 array laid out as F_* (the haze's slots before them zero; all zero
+            without fog).
+        eye_axis_m: the eye's axis position h_e, metres from sample plane 0.
+        coarsened: whether the table spacing was widened to stay within MAX_TABLE entries.
+    """
+
+    params: np.ndarray
+    eye_axis_m: float
+    coarsened: bool
+
+
+def fog_params(fog: Fog | None, view: View | None, eye: np.ndarray | None = None) -> FogTable:
+    """The per-frame fog table for one view (or, view None, for a bare eye position: tests and
+    the bench give the eye and use the world axis only)."""
+    if fog is None:
+        return FogTable(np.zeros(F_TABLE + 1, np.float64), 0.0, False)
+    if eye is None:
+        eye = view.eye
+    # Seed 004: the eyepoint's place in the strata is the dot product of the eye-to-origin
+    # vector with the axis (here negated: distance of the eye above plane 0), in float64.
+    h_e = -float(np.dot(fog.origin - np.asarray(eye, np.float64), fog.axis))
+    sig = fog.extinction
+    top = (sig.shape[0] - 1) * fog.spacing_m
+    dt = (fog.spacing_m / TABLE_SUBDIVISION if fog.table_spacing_m is None
+          else float(fog.table_spacing_m))
+    # Entries below the eye: enough to pass plane 0 by one spacing (at least one); above,
+    # to pass the top plane likewise.
+    below = max(math.ceil(h_e / dt), 0) + 1
+    above = max(math.ceil((top - h_e) / dt), 0) + 1
+    coarsened = below + above + 1 > MAX_TABLE
+    if coarsened:
+        # Guard: MAX_TABLE - 3 > 0 and the span is positive here.
+        dt = max(h_e, top - h_e, top, dt) * 2.0 / (MAX_TABLE - 3)
+        below = max(math.ceil(h_e / dt), 0) + 1
+        above = max(math.ceil((top - h_e) / dt), 0) + 1
+    n = below + above + 1
+    d = (np.arange(n) - below) * dt  # axis distance of each resample plane from the eye
+    c_eye = float(cumulative(fog, h_e))
+    integral = cumulative(fog, h_e + d) - c_eye
+    # The integral grows away from the eye; rounding (the eye a step from a plane) must not
+    # give it the wrong sign or make it shrink: a negative depth would brighten the picture.
+    integral[below:] = np.maximum.accumulate(np.maximum(integral[below:], 0.0))
+    integral[:below + 1] = np.minimum.accumulate(np.minimum(integral[:below + 1], 0.0)[::-1])[::-1]
+    sig_eye = float(sigma_at(fog, h_e))
+    avg = np.empty(n)
+    nz = d != 0.0
+    avg[nz] = integral[nz] / d[nz]  # guard: only the eye's own entry has d = 0
+    avg[below] = sig_eye
+    out = np.zeros(F_TABLE + 2 * n, np.float64)
+    out[F_ON] = 1.0
+    out[F_RGB:F_RGB + 3] = fog.colour
+    if view is not None:
+        # World direction of eye ray (tx, ty, 1) is (tx, ty, 1) @ world_to_eye.
+        out[F_AXIS:F_AXIS + 3] = view.world_to_eye @ fog.axis
+    out[F_INV_DT] = 1.0 / dt  # guard: dt > 0
+    out[F_DT] = dt
+    out[F_J0] = below
+    out[F_N] = n
+    out[F_SIG_EYE] = sig_eye
+    out[F_SIG_LO] = sig[0]
+    out[F_SIG_HI] = sig[-1]
+    out[F_INT_LO] = integral[0]
+    out[F_INT_HI] = integral[-1]
+    out[F_WORLD_AXIS:F_WORLD_AXIS + 3] = fog.axis
+    # Interleaved: the average to plane j, then the integral's slope there (sigma), limited
+    # (Fritsch-Carlson) so that the cubic between planes never turns back: the integral only
+    # grows away from the eye. Exact data (sigma linear across a cell) are never limited: there
+    # the slopes are at most twice the cell's mean. The eye's own slope is sigma at the eye,
+    # kept: it is the parallel ray's extinction.
+    slope = sigma_at(fog, h_e + d)
+    step = np.abs(np.diff(integral)) / dt  # mean sigma over each cell
+    cap = np.full(n, np.inf)
+    cap[:-1] = 3.0 * step
+    cap[1:] = np.minimum(cap[1:], 3.0 * step)
+    cap[below] = np.inf
+    slope = np.minimum(slope, cap)
+    out[F_TABLE::2] = avg
+    out[F_TABLE + 1::2] = slope
+    # The eye's two cells keep the eye's slope, so their cubics may turn back: fog_depth holds
+    # them at their first peak from there on.
+    out[F_TURN_UP], out[F_PEAK_UP] = _eye_cell_turn(sig_eye, avg[below + 1], slope[below + 1])
+    out[F_TURN_DN], out[F_PEAK_DN] = _eye_cell_turn(sig_eye, avg[below - 1], slope[below - 1])
+    return FogTable(out, h_e, coarsened)
+
+
+def _eye_cell_turn(s_eye: float, a_far: float, s_far: float) -> tuple[float, float]:
+    """(w, P): the first point w in (0, 1) of an eye cell where its cubic
+    P(w) = I / dt = (w^3 - 2 w^2 + w) s_eye + (3 w^2 - 2 w^3) a_far + (w^3 - w^2) s_far
+    stops growing, and P there; (inf, 0) if it grows across the whole cell."""
+    # P'(w) = a w^2 + b w + c, with P'(0) = s_eye >= 0.
+    a = 3.0 * s_eye - 6.0 * a_far + 3.0 * s_far
+    b = -4.0 * s_eye + 6.0 * a_far - 2.0 * s_far
+    c = s_eye
+    roots = np.roots([a, b, c]) if (a != 0.0 or b != 0.0) else np.zeros(0)
+    real = sorted(float(r.real) for r in np.atleast_1d(roots)
+                  if abs(r.imag) <= 1e-12 * max(1.0, abs(r.real)) and 0.0 < r.real < 1.0)
+    for w in real:
+        # A root where the slope goes from rising to falling (a double root only touches 0).
+        if a * 2.0 * w + b < 0.0:
+            return w, (w ** 3 - 2 * w ** 2 + w) * s_eye + (3 * w ** 2 - 2 * w ** 3) * a_far \
+                + (w ** 3 - w ** 2) * s_far
+    return math.inf, 0.0
+
+
+@njit(cache=True, inline="always")
+def fog_depth(f, range_m, cos_ax):
+    """Optical depth of the fog block f (fog_params) along a ray of direction cosine cos_ax
+    with the axis, from the eye to range_m (metres; inf for the sky)."""
+    if math.isinf(range_m):
+        if cos_ax > 0.0:
+            if f[F_SIG_HI] > 0.0:
+                return math.inf
+            # Guard: cos_ax > 0; a tiny one gives inf (the integral is >= 0, never NaN).
+            return f[F_INT_HI] / cos_ax
+        if cos_ax < 0.0:
+            if f[F_SIG_LO] > 0.0:
+                return math.inf
+            return f[F_INT_LO] / cos_ax  # guard: cos_ax < 0 (and the integral is <= 0)
+        return math.inf if f[F_SIG_EYE] > 0.0 else 0.0
+    d = range_m * cos_ax
+    u = d * f[F_INV_DT] + f[F_J0]
+    n = f[F_N]
+    if u <= 0.0:
+        d_end = -f[F_J0] * f[F_DT]
+        # Beyond the table sigma is constant. Guard: u <= 0 means |d| >= |d_end| >= dt > 0.
+        avg = f[F_SIG_LO] + (f[F_TABLE] - f[F_SIG_LO]) * (d_end / d)
+    elif u >= n - 1.0:
+        d_end = (n - 1.0 - f[F_J0]) * f[F_DT]
+        last = F_TABLE + 2 * (int(n) - 1)
+        avg = f[F_SIG_HI] + (f[last] - f[F_SIG_HI]) * (d_end / d)  # guard: d >= d_end >= dt
+    else:
+        i = int(u)
+        w = u - i
+        e = F_TABLE + 2 * i
+        a0 = f[e]
+        s0 = f[e + 1]
+        a1 = f[e + 2]
+        s1 = f[e + 3]
+        dt = f[F_DT]
+        k = i - f[F_J0]  # the cell spans axis distances k dt .. (k + 1) dt from the eye
+        # The integral I(d) = A(d) d is cubic-Hermite interpolated from its values and slopes
+        # (sigma) at the cell's ends: exact where sigma is linear across the cell, so only
+        # cells holding a sample plane (a kink of sigma) are approximate.
+        w2 = w * w
+        w3 = w2 * w
+        if k == 0.0:
+            # From the eye up: I(0) = 0, so I / d needs no division and tends to sigma at
+            # the eye (s0) as d -> 0: the parallel ray. Kept within the cell's ends' values
+            # (I between 0 and a1 dt): the eye's slope is not limited.
+            avg = (w2 - 2.0 * w + 1.0) * s0 + (3.0 * w - 2.0 * w2) * a1 + (w2 - w) * s1
+            if w > f[F_TURN_UP]:
+                # Past the cubic's first peak: held there (the depth never falls with range).
+                # Guard: w > F_TURN_UP > 0.
+                avg = max(avg, f[F_PEAK_UP] / w)
+            avg = max(avg, 0.0)
+            if w > 0.0 and avg * w > a1:
+                avg = a1 / w  # guard: w > 0
+        elif k == -1.0:
+            # From the eye down (d = (w - 1) dt, I(d) at w = 1 is 0): the mirror image.
+            v = 1.0 - w
+            v2 = v * v
+            avg = (v2 - 2.0 * v + 1.0) * s1 + (3.0 * v - 2.0 * v2) * a0 + (v2 - v) * s0
+            if v > f[F_TURN_DN]:
+                avg = max(avg, f[F_PEAK_DN] / v)  # guard: v > F_TURN_DN > 0
+            avg = max(avg, 0.0)
+            if v > 0.0 and avg * v > a0:
+                avg = a0 / v  # guard: v > 0
+        else:
+            i0 = a0 * k * dt
+            i1 = a1 * (k + 1.0) * dt
+            integral = ((2.0 * w3 - 3.0 * w2 + 1.0) * i0 + (w3 - 2.0 * w2 + w) * dt * s0
+                        + (3.0 * w2 - 2.0 * w3) * i1 + (w3 - w2) * dt * s1)
+            avg = integral / d  # guard: |d| >= dt > 0 outside the eye's two cells
+    return avg * range_m
+
+
+@njit(cache=True, inline="always")
+def fog_cos(f, tx, ty, ray):
+    """Direction cosine with the fog axis of eye ray (tx, ty, 1) of length ray (>= 1)."""
+    return (f[F_AXIS] * tx + f[F_AXIS + 1] * ty + f[F_AXIS + 2]) / ray
+
+
+@njit(cache=True, inline="always")
+def fog_blend(f, range_m, cos_ax, r, g, b):
+    """(r, g, b) seen through the fog block f at range_m along a ray of axis cosine cos_ax."""
+    t = math.exp(-fog_depth(f, range_m, cos_ax))
+    k = 1.0 - t
+    return t * r + k * f[F_RGB], t * g + k * f[F_RGB + 1], t * b + k * f[F_RGB + 2]
+
+
+@njit(cache=True)
+def fog_depths(f, range_m, cos_ax):
+    """fog_depth for arrays of rays (tests and the bench)."""
+    out = np.empty(range_m.shape[0])
+    for i in range(range_m.shape[0]):
+        out[i] = fog_depth(f, range_m[i], cos_ax[i])
+    return out
