@@ -140,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
                     "ranges": f"{grid_ranges} log-spaced 10 m .. 100 km, and the sky (inf)"},
     }
     run(record, eyes, repeats, lookup_rays, error_rays, grid_ranges, progress)
+    record["frames"] = frame_costs(repeats, quick, progress)
     record["machine"]["load_average_1min_at_end"] = (os.getloadavg()[0]
                                                      if hasattr(os, "getloadavg") else None)
     record["seconds"] = progress.seconds
@@ -154,6 +155,54 @@ def main(argv: list[str] | None = None) -> int:
         written.append(fig)
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+#: The whole-frame comparison: the channel of bench_terrain.py (1280 x 1024, 60 degrees, 4
+#: samples), the bundled scenes with and without the demo scene's valley mist.
+FRAME = {"width": 1280, "height": 1024, "fov_h_deg": 60.0, "samples": "rgss4"}
+FRAME_EYES = {"level at 60 m": (0.0, -1500.0, 60.0, 0.0, -3.0),
+              "climbing at 400 m": (0.0, 2000.0, 400.0, 200.0, -8.0)}
+
+
+def frame_costs(repeats: int, quick: bool, progress) -> list[dict[str, Any]]:
+    """Whole frames on one core, with the demo scene's fog and without it: the bundled
+    airfield alone (fog alone makes the background stage paint the sky and earth) and on the
+    bundled terrain under haze and clouds (fog adds to every texel and sample)."""
+    import dataclasses
+
+    from channel_worker.pipeline.render import render_frame
+    from channel_worker.pipeline.scene import demo_scene_path, load_scene
+    from channel_worker.pipeline.types import ChannelSpec, Eyepoint, StageTimes
+
+    demo = load_scene(demo_scene_path())
+    flat = load_scene(demo_scene_path().with_name("airfield.json"))
+    scenes = {"airfield": (dataclasses.replace(flat, fog=demo.fog), flat)}
+    if not quick:
+        scenes["airfield on terrain, haze, clouds"] = (demo, dataclasses.replace(demo, fog=None))
+    channel = ChannelSpec.symmetric("c", FRAME["width"], FRAME["height"], FRAME["fov_h_deg"])
+    out = np.empty((FRAME["height"], FRAME["width"], 3), np.float32)
+    rows = []
+    for scene_name, (fogged, clear) in scenes.items():
+        for eye_name, (x, y, z, h, p) in FRAME_EYES.items():
+            eye = Eyepoint.of(x, y, z, h, p, 0.0)
+            row: dict[str, Any] = {"scene": scene_name, "eye": eye_name}
+            for label, db in (("fog", fogged), ("no_fog", clear)):
+                frames, stages = [], []
+                for i in range(repeats + 1):  # the first: a warm-up (numba compiles)
+                    times = StageTimes()
+                    t0 = time.perf_counter()
+                    render_frame(db, channel, eye, samples=FRAME["samples"], with_range=False,
+                                 out=out, times=times)
+                    if i:
+                        frames.append(time.perf_counter() - t0)
+                        stages.append(times.seconds)
+                row[label] = {"frame_ms": 1e3 * statistics.median(frames),
+                              "stages_ms": {k: 1e3 * statistics.median(s.get(k, 0.0) for s in stages)
+                                            for k in sorted({k for s in stages for k in s})}}
+            rows.append(row)
+            progress(f"frame {scene_name}, {eye_name}: fog {row['fog']['frame_ms']:.1f} ms, "
+                     f"none {row['no_fog']['frame_ms']:.1f} ms")
+    return rows
 
 
 def make_fog(factor: float):
@@ -375,6 +424,17 @@ def print_report(record: dict) -> None:
             f"{r['build_us_median']:.1f}", f"{r['lookup_ns_median']:.2f}",
             f"{r['max_colour_error']:.2e}", f"{r['random_mean']:.1e}",
             f"{r['grazing_mean']:.1e}"] for r in record["summary"]])
+    if record.get("frames"):
+        print(f"\nwhole frames, one core, {FRAME['width']} x {FRAME['height']}, "
+              f"{FRAME['samples']}: median ms with the demo scene's fog and without")
+        table(["scene", "eye", "fog", "no fog", "background fog", "visibility fog",
+               "visibility no fog"],
+              [[r["scene"], r["eye"], f"{r['fog']['frame_ms']:.1f}",
+                f"{r['no_fog']['frame_ms']:.1f}",
+                f"{r['fog']['stages_ms'].get('terrain', 0.0):.1f}",
+                f"{r['fog']['stages_ms'].get('visibility', 0.0):.1f}",
+                f"{r['no_fog']['stages_ms'].get('visibility', 0.0):.1f}"]
+               for r in record["frames"]])
     seed = record.get("seed_linear")
     if seed:
         print(f"\nthe seed's look-up (the average interpolated linearly, resample planes one "

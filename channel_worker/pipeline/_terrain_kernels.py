@@ -701,6 +701,60 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                             out_rgb, out_iz, out_range, out_cloud)
 
 
+@njit(cache=True, parallel=True)
+def sky_earth_kernel(mapping, offsets, width, height, horizon, dz_row, height_above, sky, earth,
+                     air, out_rgb, out_range):
+    """The background of a scene with haze or fog but neither terrain nor clouds: per pixel
+    (at its centre) the sky over the earth plane (the share of the pixel's samples below the
+    horizon sees the earth), through the air; out_range: the earth plane's range where seen,
+    +inf for sky. What warp_kernel paints there, without its pre-image."""
+    kx, ky, k0 = horizon[0], horizon[1], horizon[2]
+    s_count = offsets.shape[0]
+    inv_s = 1.0 / s_count
+    # Guard: screen_mapping's scales are nonzero (check_channel: left < right, bottom < top).
+    inv_sxs = 1.0 / mapping[0]
+    inv_sys = 1.0 / mapping[2]
+    for y in prange(height):
+        ty = (y + 0.5 - mapping[3]) * inv_sys
+        for x in range(width):
+            tx = (x + 0.5 - mapping[1]) * inv_sxs
+            n_earth = 0
+            for s in range(s_count):
+                if kx * (x + offsets[s, 0]) + ky * (y + offsets[s, 1]) + k0 < 0.0:
+                    n_earth += 1
+            ez = dz_row[0] * tx + dz_row[1] * ty + dz_row[2]  # world z of the ray
+            ray = math.sqrt(tx * tx + ty * ty + 1.0)
+            sin_el = ez / ray  # guard: ray >= 1
+            cos_ax = fog_cos(air, tx, ty, ray) if air[F_ON] != 0.0 else 0.0
+            er, eg, eb = earth[0], earth[1], earth[2]
+            sr, sg, sb = sky[0], sky[1], sky[2]
+            earth_range = math.inf
+            if n_earth > 0:
+                # Guard: ez < 0 below the horizon; at it rounding may give 0 or a tiny
+                # positive: the range becomes huge, never negative.
+                earth_range = ray * height_above / max(-ez, 1e-300)
+                if air[0] != 0.0:
+                    he = haze_amount(air, earth_range, min(sin_el, -1e-9))
+                    er = er * (1.0 - he) + air[3] * he
+                    eg = eg * (1.0 - he) + air[4] * he
+                    eb = eb * (1.0 - he) + air[5] * he
+                if air[F_ON] != 0.0:
+                    er, eg, eb = fog_blend(air, earth_range, cos_ax, er, eg, eb)
+            if n_earth < s_count:
+                if air[0] != 0.0:
+                    hs = haze_amount(air, math.inf, max(sin_el, 0.0))
+                    sr = sr * (1.0 - hs) + air[3] * hs
+                    sg = sg * (1.0 - hs) + air[4] * hs
+                    sb = sb * (1.0 - hs) + air[5] * hs
+                if air[F_ON] != 0.0:
+                    sr, sg, sb = fog_blend(air, math.inf, cos_ax, sr, sg, sb)
+            fe = n_earth * inv_s
+            out_rgb[y, x, 0] = fe * er + (1.0 - fe) * sr
+            out_rgb[y, x, 1] = fe * eg + (1.0 - fe) * sg
+            out_rgb[y, x, 2] = fe * eb + (1.0 - fe) * sb
+            out_range[y, x] = earth_range
+
+
 @njit(cache=True, inline="always")
 def _block_corners(x0, y0, size, m, mapping, phi_lo, dphi, span, full, theta0, dtheta, ncols):
     """Pre-image coordinates of a block's corners, and whether interpolating them misses the

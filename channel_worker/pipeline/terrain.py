@@ -26,7 +26,13 @@ import math
 import numpy as np
 
 from ._cloud_kernels import scan_clouds_kernel
-from ._terrain_kernels import PRE_CHANNELS, fill_skipped, scan_kernel, warp_kernel
+from ._terrain_kernels import (
+    PRE_CHANNELS,
+    fill_skipped,
+    scan_kernel,
+    sky_earth_kernel,
+    warp_kernel,
+)
 from .clouds import BASE_SHADE, CLOUD_FACTOR
 from .air import air_params
 from .haze import OPAQUE_TAU, beta_at, sky_haze_table
@@ -86,6 +92,8 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
     stats = {"terrain_voxels": 0, "terrain_columns": 0, "terrain_rows": 0,
              "terrain_eye_clamped": 0}
     air = air_params(database, view)
+    if terrain is None and database.clouds is None:
+        return _sky_and_earth(database, view, offsets, air, stats)
     grid = preimage_grid(view)
     if terrain is None:
         pre = np.zeros((1, 1, PRE_CHANNELS), np.float32)
@@ -121,6 +129,21 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
                 row_ratio, tile, need, rgb, inv_z, range_m, cloud)
     return Background(rgb=rgb, inv_z=inv_z, range_m=range_m, stats=stats,
                       cloud=cloud if cloud_on else None)
+
+
+def _sky_and_earth(database: Database, view: View, offsets: np.ndarray, air: np.ndarray,
+                   stats: dict) -> Background:
+    """Haze or fog alone: only the sky and the earth plane are seen through it, per pixel, and
+    neither ever hides a polygon (1/z 0 everywhere: a zeroed array, pages mapped on touch)."""
+    h, w, s = view.height, view.width, offsets.shape[0]
+    rgb = np.empty((h, w, 3), np.float32)
+    range_m = np.empty((h, w), np.float32)
+    sky_earth_kernel(np.array(screen_mapping(view)), np.ascontiguousarray(offsets, np.float64), w,
+                     h, np.array(earth_dz_screen(view)), earth_dz_row(view),
+                     height_above_earth(database, view), database.sky_colour.astype(np.float32),
+                     database.earth_colour.astype(np.float32), air, rgb, range_m)
+    return Background(rgb=rgb, inv_z=np.zeros((h, w, s), np.float32), range_m=range_m,
+                      stats=stats, cloud=None)
 
 
 def check_level_bias(bias: int) -> int:

@@ -17,7 +17,7 @@ from channel_worker.pipeline.scene import SceneError, parse_scene
 from channel_worker.pipeline.terrain import render_terrain
 from channel_worker.pipeline.types import ChannelSpec, Eyepoint, StageTimes
 
-from .terrain_fixtures import CENTRE, flat_nodes, linear, scene
+from .terrain_fixtures import CENTRE, RGSS4, flat_nodes, linear, scene
 
 SKY, EARTH, WALL, FOG = "#2050c0", "#406020", "#a03020", "#c0c8d0"
 SMALL = ChannelSpec.symmetric("c", 96, 72, 60.0)
@@ -325,3 +325,25 @@ def test_scene_fog_errors_name_the_field_and_value(fog, field, value):
     with pytest.raises(SceneError) as err:
         parse_scene(_doc(fog))
     assert field in str(err.value) and value in str(err.value), str(err.value)
+
+
+@pytest.mark.parametrize("pitch, roll", [(0.0, 0.0), (-35.0, 20.0), (60.0, 180.0)])
+def test_sky_and_earth_alike_with_and_without_terrain(pitch, roll):
+    """Fog alone paints the sky and earth with its own per-pixel kernel; under terrain the warp
+    paints them. Both are the same fog: a terrain out of sight (behind the eye) changes
+    nothing in front."""
+    from channel_worker.testing.terrain_reference import single_level_database
+
+    h, c = flat_nodes(4)
+    behind = single_level_database(h, c, 10.0, np.array([-20.0, -900.0, 0.0]), page_size=4)
+    fog = dict(GROUND, axis=[0.3, -0.2, 0.93], origin_m=[20.0, 30.0, 5.0])
+    bare = scene(sky=SKY, earth=EARTH, fog=fog)
+    with_terrain = scene(terrain=behind, sky=SKY, earth=EARTH, fog=fog)
+    view = make_view(SMALL, Eyepoint.of(0.0, 0.0, 45.0, 0.0, pitch, roll))
+    a = render_terrain(bare, view, RGSS4)
+    b = render_terrain(with_terrain, view, RGSS4)
+    assert not (b.inv_z > 0).any()  # the terrain is out of sight
+    assert np.abs(a.rgb - b.rgb).max() < 1e-5
+    assert np.array_equal(np.isinf(a.range_m), np.isinf(b.range_m))
+    finite = np.isfinite(a.range_m)
+    assert np.allclose(a.range_m[finite], b.range_m[finite], rtol=1e-5)
