@@ -160,6 +160,37 @@ def sigma_at(fog: Fog, s: np.ndarray | float) -> np.ndarray:
     return np.interp(np.asarray(s, np.float64), planes, fog.extinction)
 
 
+def average_floor(fog: Fog, eye: np.ndarray, d_lo: float, d_hi: float) -> float:
+    """A lower bound on the average extinction A(d) from the eye to any axis distance d in
+    [d_lo, d_hi] (metres; the terrain stage stops scanning where range x bound passes opaque).
+
+    Exact over cells of a fine grid: in a cell [a, b] with 0 < a the integral grows, so
+    A(d) = I(d) / d >= I(a) / b (likewise below the eye); a cell holding the eye averages sigma
+    over a part of it, so at least its least sigma.
+    """
+    h_e = -float(np.dot(fog.origin - np.asarray(eye, np.float64), fog.axis))
+    step = fog.spacing_m / TABLE_SUBDIVISION
+    n = min(max(math.ceil((d_hi - d_lo) / step), 1), 4096)
+    edges = np.linspace(d_lo, d_hi, n + 1)
+    a, b = edges[:-1], edges[1:]
+    integral = cumulative(fog, h_e + edges) - float(cumulative(fog, h_e))
+    i_a, i_b = integral[:-1], integral[1:]
+    bound = np.empty(n)
+    up, down = a > 0.0, b < 0.0
+    bound[up] = i_a[up] / b[up]  # guard: b > a > 0
+    bound[down] = i_b[down] / a[down]  # guard: a < b < 0
+    eye_cell = ~(up | down)
+    if eye_cell.any():
+        planes = np.arange(fog.extinction.shape[0]) * fog.spacing_m
+        lo, hi = h_e + float(a[eye_cell][0]), h_e + float(b[eye_cell][-1])
+        inside = fog.extinction[(planes > lo) & (planes < hi)]
+        least = min(float(sigma_at(fog, lo)), float(sigma_at(fog, hi)),
+                    float(inside.min()) if inside.size else math.inf)
+        bound[eye_cell] = least
+    # Rounding of the integrals (an eye a step from a plane) must not make it negative.
+    return max(float(bound.min()), 0.0)
+
+
 @dataclass(frozen=True)
 class FogTable:
     """One frame's fog for the kernels.

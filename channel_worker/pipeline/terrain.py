@@ -35,6 +35,7 @@ from ._terrain_kernels import (
 )
 from .clouds import BASE_SHADE, CLOUD_FACTOR
 from .air import air_params
+from .fog import average_floor
 from .haze import OPAQUE_TAU, beta_at, sky_haze_table
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
@@ -277,10 +278,18 @@ def _scan(database: Database, view: View, grid: PreimageGrid, air: np.ndarray, l
         # is at least as dense as at the higher of the eye and the highest terrain point.
         top = max(float(view.eye[2]), terrain.origin[2] + terrain.z_max)
         r_far = min(r_far, OPAQUE_TAU / beta_at(database.haze, top))
-    if database.fog is not None and float(database.fog.extinction.min()) > 0.0:
-        # Likewise all fog: every path is at least as dense as the clearest stratum (slant
-        # range >= ground range). Guard: the minimum is > 0 here.
-        r_far = min(r_far, OPAQUE_TAU / float(database.fog.extinction.min()))
+    if database.fog is not None:
+        # Likewise all fog: a terrain point's axis distance from the eye lies between those of
+        # the database box's corners, and its slant range is at least its ground range, so
+        # its optical depth is at least ground range x the least average extinction there.
+        fog = database.fog
+        ex, ey = terrain.extent_m
+        corners = np.array([[x, y, z] for x in (0.0, ex) for y in (0.0, ey)
+                            for z in (terrain.z_min, terrain.z_max)]) + terrain.origin
+        d = (corners - np.asarray(view.eye, np.float64)) @ fog.axis
+        floor = average_floor(fog, view.eye, float(d.min()), float(d.max()))
+        if floor > 0.0:
+            r_far = min(r_far, OPAQUE_TAU / floor)  # guard: floor > 0
     log2_page = int(terrain.page_size).bit_length() - 1
     patterns = terrain.patterns
     n_pat = max(len(patterns), 1)
