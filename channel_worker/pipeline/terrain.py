@@ -33,8 +33,8 @@ from ._terrain_kernels import (
     sky_earth_kernel,
     warp_kernel,
 )
-from .clouds import BASE_SHADE, CLOUD_FACTOR
 from .air import air_params
+from .clouds import BASE_SHADE, CLOUD_FACTOR
 from .fog import average_floor
 from .haze import OPAQUE_TAU, beta_at, sky_haze_table
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
