@@ -73,7 +73,8 @@ F_TURN_UP = F_ON + 19  # the eye's cells: where their cubic first turns back (or
 F_PEAK_UP = F_ON + 20  # its value there (I / dt) (_eye_cell_turn)
 F_TURN_DN = F_ON + 21
 F_PEAK_DN = F_ON + 22
-F_TABLE = F_ON + 23
+F_COARSENED = F_ON + 23  # 1 where the table spacing was widened (MAX_TABLE), for the stats
+F_TABLE = F_ON + 24
 
 #: Extinction coefficient times meteorological visibility (Koschmieder: the distance at which
 #: a black object keeps 2 % contrast), for scenes that give the strata as visibilities.
@@ -262,6 +263,7 @@ def fog_params(fog: Fog | None, view: View | None, eye: np.ndarray | None = None
     out[F_INT_LO] = integral[0]
     out[F_INT_HI] = integral[-1]
     out[F_WORLD_AXIS:F_WORLD_AXIS + 3] = fog.axis
+    out[F_COARSENED] = float(coarsened)
     # Interleaved: the average to plane j, then the integral's slope there (sigma), limited
     # (Fritsch-Carlson) so that the cubic between planes never turns back: the integral only
     # grows away from the eye. Exact data (sigma linear across a cell) are never limited: there

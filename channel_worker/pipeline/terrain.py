@@ -35,7 +35,7 @@ from ._terrain_kernels import (
 )
 from .air import air_params
 from .clouds import BASE_SHADE, CLOUD_FACTOR
-from .fog import average_floor
+from .fog import F_COARSENED, average_floor
 from .haze import OPAQUE_TAU, beta_at, sky_haze_table
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
@@ -82,7 +82,8 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
     Returns:
         Background with per-sample colour and depth-test 1/z and per-pixel range; its stats
         hold "terrain_voxels" (voxels visited), "terrain_columns", "terrain_rows" and
-        "terrain_eye_clamped".
+        "terrain_eye_clamped", and with fog "fog_table_coarsened" (1 if the eye is so far
+        from the strata that the table was coarsened to MAX_TABLE entries).
     """
     terrain = database.terrain
     if (terrain is None and database.haze is None and database.clouds is None
@@ -93,6 +94,8 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
     stats = {"terrain_voxels": 0, "terrain_columns": 0, "terrain_rows": 0,
              "terrain_eye_clamped": 0}
     air = air_params(database, view)
+    if database.fog is not None:
+        stats["fog_table_coarsened"] = int(air[F_COARSENED])
     if terrain is None and database.clouds is None:
         return _sky_and_earth(database, view, offsets, air, stats)
     grid = preimage_grid(view)

@@ -282,6 +282,14 @@ def test_a_scene_without_fog_pays_nothing():
     assert "terrain" in times.seconds
 
 
+def test_a_coarsened_table_is_reported():
+    db = wall_scene(600.0, fog={"spacing_m": 1.0, "extinction_per_m": [0.01, 0.0], "colour": FOG})
+    near, far = {}, {}
+    render_frame(db, SMALL, Eyepoint.of(0.0, 0.0, 30.0, 0.0, 0.0, 0.0), stats=near)
+    render_frame(db, SMALL, Eyepoint.of(0.0, 0.0, 20000.0, 0.0, -10.0, 0.0), stats=far)
+    assert near["fog_table_coarsened"] == 0 and far["fog_table_coarsened"] == 1
+
+
 def test_the_scanline_renderer_refuses_fog():
     with pytest.raises(ValueError, match="fog"):
         render_frame(wall_scene(600.0), SMALL, Eyepoint.of(0.0, 0.0, 30.0, 0.0, 0.0, 0.0),
