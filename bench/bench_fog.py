@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
-import json
 import math
 import os
 import statistics
@@ -45,7 +44,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from common import bench_parser, replot  # bench/ is on the path when run as a script
+from common import bench_parser, finish, replot  # bench/ is on the path as a script
 
 SPACING_M = 20.0
 #: Ground fog, 1/m at planes 0, 20, ..., 300 m: the dense layer is plane 5 (100 m).
@@ -141,19 +140,8 @@ def main(argv: list[str] | None = None) -> int:
     }
     run(record, eyes, repeats, lookup_rays, error_rays, grid_ranges, progress)
     record["frames"] = frame_costs(repeats, quick, progress)
-    record["machine"]["load_average_1min_at_end"] = (os.getloadavg()[0]
-                                                     if hasattr(os, "getloadavg") else None)
     record["seconds"] = progress.seconds
-
-    print_report(record)
-    args.out.mkdir(parents=True, exist_ok=True)
-    json_path = args.out / "fog.json"
-    json_path.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-    written = [json_path]
-    fig = args.out / "fog.png"
-    if plot(record, fig):
-        written.append(fig)
-    print("wrote " + ", ".join(str(p) for p in written))
+    finish(record, args.out, "fog", print_report, plot)
     return 0
 
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime as dt
-import json
 import math
 import os
 import statistics
@@ -50,7 +49,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from common import bench_parser, replot  # bench/ is on the path when run as a script
+from common import bench_parser, finish, replot  # bench/ is on the path as a script
 
 #: The issue's channel: 1280 x 1024, 60 degrees across, square pixels, 4 samples (rgss4).
 WIDTH, HEIGHT, FOV_H_DEG, SAMPLES = 1280, 1024, 60.0, "rgss4"
@@ -197,19 +196,8 @@ def main(argv: list[str] | None = None) -> int:
     no_terrain(record, repeats, progress)
     level_window(record, progress)
     bias_grid(record, quick, bias_repeats, progress)
-    record["machine"]["load_average_1min_at_end"] = (os.getloadavg()[0]
-                                                     if hasattr(os, "getloadavg") else None)
     record["seconds"] = progress.seconds
-
-    print_report(record)
-    args.out.mkdir(parents=True, exist_ok=True)
-    json_path = args.out / "terrain.json"
-    json_path.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-    written = [json_path]
-    fig = args.out / "terrain.png"
-    if plot(record, fig):
-        written.append(fig)
-    print("wrote " + ", ".join(str(p) for p in written))
+    finish(record, args.out, "terrain", print_report, plot)
     return 0
 
 

@@ -29,6 +29,22 @@ def bench_parser(doc: str, name: str, repeats_help: str, quick_help: str) -> arg
     return parser
 
 
+def finish(record: dict, out: Path, name: str, print_report: Callable[[dict], None],
+           plot: Callable[[dict, Path], bool]) -> None:
+    """Note the load at the end, print the report, write out/NAME.json and the figure."""
+    record["machine"]["load_average_1min_at_end"] = (os.getloadavg()[0]
+                                                     if hasattr(os, "getloadavg") else None)
+    print_report(record)
+    out.mkdir(parents=True, exist_ok=True)
+    json_path = out / f"{name}.json"
+    json_path.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+    written = [json_path]
+    fig = out / f"{name}.png"
+    if plot(record, fig):
+        written.append(fig)
+    print("wrote " + ", ".join(str(p) for p in written))
+
+
 def replot(args: argparse.Namespace, name: str, print_report: Callable[[dict], None],
            plot: Callable[[dict, Path], bool]) -> bool:
     """With --replot: reprint and redraw from the saved record, and say so (True)."""

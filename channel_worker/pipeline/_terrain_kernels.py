@@ -667,7 +667,6 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
     blocks_x = (width + block - 1) // block
     blocks_y = (height + block - 1) // block
     kx, ky, k0 = horizon[0], horizon[1], horizon[2]
-    inv_s = 1.0 / s_count
     # Guard: screen_mapping's scales are nonzero (check_channel: left < right, bottom < top).
     inv_sxs = 1.0 / mapping[0]
     inv_sys = 1.0 / mapping[2]
@@ -682,7 +681,7 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                             pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
                             k0, dz_row, height_above, sky, earth, air, sky_haze, sky_haze_t0, sky_haze_dt,
                             margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
-                            tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
+                            tiles_x, depth_need, ncols, nrows, span, s_count, inv_sxs, inv_sys,
                             out_rgb, out_iz, out_range, out_cloud)
                 continue
             # Mapping too curved for the block (near the nadir or zenith): its quarters, each
@@ -697,7 +696,7 @@ def warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, wi
                             pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
                             k0, dz_row, height_above, sky, earth, air, sky_haze, sky_haze_t0, sky_haze_dt,
                             margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
-                            tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
+                            tiles_x, depth_need, ncols, nrows, span, s_count, inv_sxs, inv_sys,
                             out_rgb, out_iz, out_range, out_cloud)
 
 
@@ -710,7 +709,6 @@ def sky_earth_kernel(mapping, offsets, width, height, horizon, dz_row, height_ab
     +inf for sky. What warp_kernel paints there, without its pre-image."""
     kx, ky, k0 = horizon[0], horizon[1], horizon[2]
     s_count = offsets.shape[0]
-    inv_s = 1.0 / s_count
     # Guard: screen_mapping's scales are nonzero (check_channel: left < right, bottom < top).
     inv_sxs = 1.0 / mapping[0]
     inv_sys = 1.0 / mapping[2]
@@ -718,41 +716,61 @@ def sky_earth_kernel(mapping, offsets, width, height, horizon, dz_row, height_ab
         ty = (y + 0.5 - mapping[3]) * inv_sys
         for x in range(width):
             tx = (x + 0.5 - mapping[1]) * inv_sxs
-            n_earth = 0
-            for s in range(s_count):
-                if kx * (x + offsets[s, 0]) + ky * (y + offsets[s, 1]) + k0 < 0.0:
-                    n_earth += 1
-            ez = dz_row[0] * tx + dz_row[1] * ty + dz_row[2]  # world z of the ray
-            ray = math.sqrt(tx * tx + ty * ty + 1.0)
-            sin_el = ez / ray  # guard: ray >= 1
-            cos_ax = fog_cos(air, tx, ty, ray) if air[F_ON] != 0.0 else 0.0
-            er, eg, eb = earth[0], earth[1], earth[2]
-            sr, sg, sb = sky[0], sky[1], sky[2]
-            earth_range = math.inf
-            if n_earth > 0:
-                # Guard: ez < 0 below the horizon; at it rounding may give 0 or a tiny
-                # positive: the range becomes huge, never negative.
-                earth_range = ray * height_above / max(-ez, 1e-300)
-                if air[0] != 0.0:
-                    he = haze_amount(air, earth_range, min(sin_el, -1e-9))
-                    er = er * (1.0 - he) + air[3] * he
-                    eg = eg * (1.0 - he) + air[4] * he
-                    eb = eb * (1.0 - he) + air[5] * he
-                if air[F_ON] != 0.0:
-                    er, eg, eb = fog_blend(air, earth_range, cos_ax, er, eg, eb)
-            if n_earth < s_count:
-                if air[0] != 0.0:
-                    hs = haze_amount(air, math.inf, max(sin_el, 0.0))
-                    sr = sr * (1.0 - hs) + air[3] * hs
-                    sg = sg * (1.0 - hs) + air[4] * hs
-                    sb = sb * (1.0 - hs) + air[5] * hs
-                if air[F_ON] != 0.0:
-                    sr, sg, sb = fog_blend(air, math.inf, cos_ax, sr, sg, sb)
-            fe = n_earth * inv_s
-            out_rgb[y, x, 0] = fe * er + (1.0 - fe) * sr
-            out_rgb[y, x, 1] = fe * eg + (1.0 - fe) * sg
-            out_rgb[y, x, 2] = fe * eb + (1.0 - fe) * sb
-            out_range[y, x] = earth_range
+            n_earth = _earth_samples(x, y, offsets, kx, ky, k0)
+            hs = 0.0
+            if air[0] != 0.0 and n_earth < s_count:
+                # Guard: the ray (tx, ty, 1) is at least 1 long.
+                sin_el = (dz_row[0] * tx + dz_row[1] * ty + dz_row[2]) / math.sqrt(
+                    tx * tx + ty * ty + 1.0)
+                hs = haze_amount(air, math.inf, max(sin_el, 0.0))
+            r, g, b, out_range[y, x] = _sky_and_earth(n_earth, s_count, tx, ty, dz_row,
+                                                      height_above, sky, earth, air, hs)
+            out_rgb[y, x, 0] = r
+            out_rgb[y, x, 1] = g
+            out_rgb[y, x, 2] = b
+
+
+@njit(cache=True, inline="always")
+def _earth_samples(x, y, offsets, kx, ky, k0):
+    """How many of pixel (x, y)'s samples lie below the horizon line kx sx + ky sy + k0 = 0."""
+    n = 0
+    for s in range(offsets.shape[0]):
+        if kx * (x + offsets[s, 0]) + ky * (y + offsets[s, 1]) + k0 < 0.0:
+            n += 1
+    return n
+
+
+@njit(cache=True, inline="always")
+def _sky_and_earth(n_earth, s_count, tx, ty, dz_row, height_above, sky, earth, air, sky_haze):
+    """(r, g, b, earth range) of what lies behind everything along eye ray (tx, ty, 1): the
+    earth plane for n_earth of the pixel's s_count samples, the sky for the rest, each through
+    the haze and the fog (sky_haze: the sky's haze share, the caller's). The earth's range is
+    +inf where no sample sees it."""
+    ez = dz_row[0] * tx + dz_row[1] * ty + dz_row[2]  # world z of the ray
+    ray = math.sqrt(tx * tx + ty * ty + 1.0)
+    fogged = air[F_ON] != 0.0
+    cos_ax = fog_cos(air, tx, ty, ray) if fogged else 0.0
+    er, eg, eb = earth[0], earth[1], earth[2]
+    earth_range = math.inf
+    if n_earth > 0:
+        # Guard: ez < 0 below the horizon; at it rounding may give 0 or a tiny positive: the
+        # range becomes huge, never negative.
+        earth_range = ray * height_above / max(-ez, 1e-300)
+        if air[0] != 0.0:
+            he = haze_amount(air, earth_range, min(ez / ray, -1e-9))  # guard: ray >= 1
+            er = er * (1.0 - he) + air[3] * he
+            eg = eg * (1.0 - he) + air[4] * he
+            eb = eb * (1.0 - he) + air[5] * he
+        if fogged:
+            er, eg, eb = fog_blend(air, earth_range, cos_ax, er, eg, eb)
+    sr = sky[0] * (1.0 - sky_haze) + air[3] * sky_haze
+    sg = sky[1] * (1.0 - sky_haze) + air[4] * sky_haze
+    sb = sky[2] * (1.0 - sky_haze) + air[5] * sky_haze
+    if fogged and n_earth < s_count:
+        sr, sg, sb = fog_blend(air, math.inf, cos_ax, sr, sg, sb)
+    fe = n_earth / s_count  # guard: a pattern has at least one sample
+    return (fe * er + (1.0 - fe) * sr, fe * eg + (1.0 - fe) * sg, fe * eb + (1.0 - fe) * sb,
+            earth_range)
 
 
 @njit(cache=True, inline="always")
@@ -781,7 +799,7 @@ def _block_corners(x0, y0, size, m, mapping, phi_lo, dphi, span, full, theta0, d
 def _warp_block(x0, y0, size, exact, c00, c10, c01, c11, r00, r10, r01, r11, pre, full, phi_lo, dphi, theta0, dtheta, m, mapping, offsets, width, height, kx, ky,
                 k0, dz_row, height_above, sky, earth, air, sky_haze, sky_haze_t0, sky_haze_dt,
                 margin_m, cloud_on, cloud_pre, cloud_col_ratio, cloud_row_ratio, depth_tile,
-                tiles_x, depth_need, ncols, nrows, span, s_count, inv_s, inv_sxs, inv_sys,
+                tiles_x, depth_need, ncols, nrows, span, s_count, inv_sxs, inv_sys,
                 out_rgb, out_iz, out_range, out_cloud):
     """The pixels of one size x size block of warp_kernel, their pre-image coordinates
     interpolated from the block's corners, or each mapped exactly."""
@@ -808,55 +826,28 @@ def _warp_block(x0, y0, size, exact, c00, c10, c01, c11, r00, r10, r01, r11, pre
             ir = 0.0
             if alpha > 0.0:
                 ir = _inverse_range(pre, c0, c1, r0, r1, w00, w10, w01, w11)
-            # Behind the terrain: the earth plane below the horizon, the sky above it,
-            # each for its share of the samples.
-            n_earth = 0
-            for s in range(s_count):
-                if kx * (x + offsets[s, 0]) + ky * (y + offsets[s, 1]) + k0 < 0.0:
-                    n_earth += 1
-            tx = (sx - mapping[1]) * inv_sxs
-            ty = (sy - mapping[3]) * inv_sys
-            ez = dz_row[0] * tx + dz_row[1] * ty + dz_row[2]  # world z of the ray
-            ray = math.sqrt(tx * tx + ty * ty + 1.0)
-            sin_el = ez / ray  # guard: ray >= 1
-            er, eg, eb = earth[0], earth[1], earth[2]
-            sr, sg, sb = sky[0], sky[1], sky[2]
-            earth_range = math.inf
-            if n_earth > 0:
-                # Guard: ez < 0 below the horizon; at it rounding may give 0 or a
-                # tiny positive: the range becomes huge, never negative.
-                earth_range = ray * height_above / max(-ez, 1e-300)
-            if air[0] != 0.0 and alpha < 1.0:
-                # Only what the terrain leaves uncovered needs it. The sky's haze
-                # depends on elevation alone: from the per-row table.
-                if n_earth > 0:
-                    he = haze_amount(air, earth_range, min(sin_el, -1e-9))
-                    er = er * (1.0 - he) + air[3] * he
-                    eg = eg * (1.0 - he) + air[4] * he
-                    eb = eb * (1.0 - he) + air[5] * he
-                if n_earth < s_count:
-                    q0, q1, fq = _rows((theta0 + (rr + 0.5) * dtheta - sky_haze_t0)
-                                       / sky_haze_dt - 0.5, sky_haze.shape[0])
-                    hs = sky_haze[q0] + (sky_haze[q1] - sky_haze[q0]) * fq
-                    sr = sr * (1.0 - hs) + air[3] * hs
-                    sg = sg * (1.0 - hs) + air[4] * hs
-                    sb = sb * (1.0 - hs) + air[5] * hs
-            if air[F_ON] != 0.0 and alpha < 1.0:
-                # The fog depends on the ray's axis cosine (any axis): per pixel.
-                cos_ax = fog_cos(air, tx, ty, ray)
-                if n_earth > 0:
-                    er, eg, eb = fog_blend(air, earth_range, cos_ax, er, eg, eb)
-                if n_earth < s_count:
-                    sr, sg, sb = fog_blend(air, math.inf, cos_ax, sr, sg, sb)
-            fe = n_earth * inv_s
             keep = 1.0 - alpha
             pr = w00 * pre[c0, r0, PRE_R] + w10 * pre[c1, r0, PRE_R] + w01 * pre[c0, r1, PRE_R] + w11 * pre[c1, r1, PRE_R]
             pg = w00 * pre[c0, r0, PRE_G] + w10 * pre[c1, r0, PRE_G] + w01 * pre[c0, r1, PRE_G] + w11 * pre[c1, r1, PRE_G]
             pb = w00 * pre[c0, r0, PRE_B] + w10 * pre[c1, r0, PRE_B] + w01 * pre[c0, r1, PRE_B] + w11 * pre[c1, r1, PRE_B]
-            cr = pr + keep * (fe * er + (1.0 - fe) * sr)
-            cg = pg + keep * (fe * eg + (1.0 - fe) * sg)
-            cb = pb + keep * (fe * eb + (1.0 - fe) * sb)
-            nearest = earth_range if alpha < 1.0 else math.inf
+            cr, cg, cb = pr, pg, pb
+            earth_range = math.inf
+            if alpha < 1.0:
+                # Behind the terrain, for what it leaves uncovered: the sky and earth plane.
+                # The sky's haze depends on elevation alone: from the per-row table.
+                n_earth = _earth_samples(x, y, offsets, kx, ky, k0)
+                hs = 0.0
+                if air[0] != 0.0 and n_earth < s_count:
+                    q0, q1, fq = _rows((theta0 + (rr + 0.5) * dtheta - sky_haze_t0)
+                                       / sky_haze_dt - 0.5, sky_haze.shape[0])
+                    hs = sky_haze[q0] + (sky_haze[q1] - sky_haze[q0]) * fq
+                br, bg, bb, earth_range = _sky_and_earth(
+                    n_earth, s_count, (sx - mapping[1]) * inv_sxs, (sy - mapping[3]) * inv_sys,
+                    dz_row, height_above, sky, earth, air, hs)
+                cr += keep * br
+                cg += keep * bg
+                cb += keep * bb
+            nearest = earth_range
             if ir > 0.0:
                 nearest = min(nearest, 1.0 / ir)  # guard: ir > 0
             out_range[y, x] = nearest

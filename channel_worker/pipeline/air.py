@@ -8,7 +8,7 @@ import numpy as np
 
 from .fog import fog_params
 from .haze import HAZE_SLOTS, haze_params
-from .types import Database, View
+from .types import Background, Database, View
 
 
 def air_params(database: Database, view: View) -> np.ndarray:
@@ -18,6 +18,9 @@ def air_params(database: Database, view: View) -> np.ndarray:
     return out
 
 
-def no_air() -> np.ndarray:
-    """The air array of a frame seen through clear air (kernels that shade nothing)."""
+def frame_air(background: Background | None) -> np.ndarray:
+    """The frame's air for the visibility and resolve kernels: the one the background stage
+    built (every scene with haze or fog has that stage), else clear air."""
+    if background is not None and background.air is not None:
+        return background.air
     return fog_params(None, None).params

@@ -7,11 +7,19 @@ from collections.abc import Callable
 import numpy as np
 
 from ._resolve_kernels import box_kernel, filter_kernel, shade_kernel
-from .air import air_params
+from .air import frame_air
 from .horizon import earth_dz_row, height_above_earth
 from .project import screen_mapping
-from .types import (Background, Database, Image, SampleBuffer, ScreenPolygons, View,
-                    background_arrays, rgb_array)
+from .types import (
+    Background,
+    Database,
+    Image,
+    SampleBuffer,
+    ScreenPolygons,
+    View,
+    background_arrays,
+    rgb_array,
+)
 
 
 def _box(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
@@ -69,7 +77,7 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
         filter: name in FILTERS.
         out: optional (H, W, 3) float32 array to write the colours into.
         background: the terrain stage's output the store's BACKGROUND_ID samples refer to;
-            with the database's haze or fog, polygon samples are seen through it at their range.
+            polygon samples are seen through its air (haze, fog) at their range.
 
     Returns:
         Image with linear RGB and range in metres (+inf where every sample sees sky), the
@@ -90,7 +98,7 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, view: View, database: 
     args = (buffer.opaque, buffer.translucent, buffer.translucent_count, polygon_range,
             screen.colour, screen.opacity, database.sky_colour, database.earth_colour, tx, ty,
             earth_dz_row(view), height_above_earth(database, view), want_range, bg_rgb, bg_range,
-            air_params(database, view), screen.inv_z, sxs, sys_, cloud_on,
+            frame_air(background), screen.inv_z, sxs, sys_, cloud_on,
             cloud)
     if filter == "box":
         box_kernel(*args, rgb, range_m)

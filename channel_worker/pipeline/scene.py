@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from .geometry import hpr_matrix
 from .clouds import Clouds, cloud_layer
 from .fog import KOSCHMIEDER, MAX_FOG_PLANES, Fog
+from .geometry import hpr_matrix
 from .haze import Haze
 from .types import Database, FaceTable, Model
 

@@ -132,7 +132,7 @@ def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
                 *_sky_haze(air, grid), float(database.terrain_margin_m), WARP_BLOCK, cloud_on, cloud_pre, col_ratio,
                 row_ratio, tile, need, rgb, inv_z, range_m, cloud)
     return Background(rgb=rgb, inv_z=inv_z, range_m=range_m, stats=stats,
-                      cloud=cloud if cloud_on else None)
+                      cloud=cloud if cloud_on else None, air=air)
 
 
 def _sky_and_earth(database: Database, view: View, offsets: np.ndarray, air: np.ndarray,
@@ -147,7 +147,7 @@ def _sky_and_earth(database: Database, view: View, offsets: np.ndarray, air: np.
                      height_above_earth(database, view), database.sky_colour.astype(np.float32),
                      database.earth_colour.astype(np.float32), air, rgb, range_m)
     return Background(rgb=rgb, inv_z=np.zeros((h, w, s), np.float32), range_m=range_m,
-                      stats=stats, cloud=None)
+                      stats=stats, cloud=None, air=air)
 
 
 def check_level_bias(bias: int) -> int:

@@ -227,11 +227,12 @@ class SampleBuffer:
 
 @dataclass(frozen=True)
 class Background:
-    """What every sample sees behind the polygons, when the scene has terrain or haze.
+    """What every sample sees behind the polygons, when the scene has terrain, haze, fog or
+    clouds.
 
     Attributes:
         rgb: (H, W, 3) float32 linear colour of the pixel's background: terrain over the sky
-            or the earth plane, all with haze.
+            or the earth plane, all through the haze and fog.
         inv_z: (H, W, S) float32 1/z (eye depth, metres) a polygon must exceed to be seen in
             front of the terrain (the terrain pushed back by the scene's polygon margin); 0
             where the sample sees sky or the earth plane, which never hide a polygon.
@@ -241,6 +242,8 @@ class Background:
         cloud: (H, W, 5) float32 the pixel's cloud (premultiplied linear RGB, opacity, range
             where its ray enters cloud, metres), already laid over rgb; polygons beyond the
             entry range are seen through it. None when the scene has no clouds.
+        air: the frame's haze and fog (air.air_params), built once by the stage; the
+            visibility and resolve stages see the polygons through it. None: clear air.
     """
 
     rgb: np.ndarray
@@ -248,6 +251,7 @@ class Background:
     range_m: np.ndarray
     stats: dict[str, int] = field(default_factory=dict)
     cloud: np.ndarray | None = None
+    air: np.ndarray | None = None
 
 
 def background_arrays(background: Background | None) -> tuple:

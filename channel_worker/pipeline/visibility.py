@@ -27,9 +27,9 @@ import numba
 import numpy as np
 
 from ._visibility_kernels import coverage_kernel, visibility_kernel
+from .air import frame_air
 from .binning import DEFAULT_SUBAREA, Bins, bin_features
 from .edges import Edges, setup_edges
-from .air import air_params, no_air
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
 from .types import (
@@ -74,7 +74,7 @@ def resolve_visibility(screen: ScreenPolygons, edges: Edges, bins: Bins, view: V
     polygon_range = np.empty((h, w) if with_range else (1, 1), np.float32)
     opaque = np.empty((h, w, s), np.int32)
     stats = _run(screen, edges, bins, view, offsets, k, any_translucent, with_range,
-                 opaque, trans, count, polygon_range, None, background, no_air())
+                 opaque, trans, count, polygon_range, None, background, frame_air(None))
     return SampleBuffer(offsets=offsets, opaque=opaque, translucent=trans, translucent_count=count,
                         polygon_range=polygon_range if with_range else None, stats=stats)
 
@@ -94,8 +94,8 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
         stats: if given, receives the visibility counters.
         out: (H, W, 3) float32 array to write the colours into (a caller rendering frame after
             frame keeps one, so the pages are not faulted in anew every frame).
-        background: the terrain stage's output, or None; with the database's haze or fog,
-            polygons are seen through it per sample.
+        background: the terrain stage's output, or None; polygons are seen per sample
+            through its air (the scene's haze and fog; None: clear air).
     """
     k = check_max_translucent(max_translucent)
     h, w = view.height, view.width
@@ -104,7 +104,7 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, view: View,
     counters = _run(screen, edges, bins, view, offsets, k, bool((screen.opacity < 1.0).any()),
                     with_range, np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),
                     np.empty((1, 1, 1), np.uint8), range_m, (database, rgb), background,
-                    air_params(database, view))
+                    frame_air(background))
     if stats is not None:
         stats.update(counters)
     return Image(rgb=rgb, range_m=range_m if with_range else None)

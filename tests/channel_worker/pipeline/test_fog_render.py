@@ -15,7 +15,7 @@ from channel_worker.pipeline.project import screen_mapping
 from channel_worker.pipeline.render import render_frame
 from channel_worker.pipeline.scene import SceneError, parse_scene
 from channel_worker.pipeline.terrain import render_terrain
-from channel_worker.pipeline.types import ChannelSpec, Eyepoint, StageTimes
+from channel_worker.pipeline.types import ChannelSpec, Eyepoint
 
 from .terrain_fixtures import CENTRE, RGSS4, flat_nodes, linear, scene
 
@@ -274,12 +274,12 @@ def test_terrain_is_fogged_by_its_range():
 def test_a_scene_without_fog_pays_nothing():
     db = wall_scene(600.0)
     plain = dataclasses.replace(db, fog=None)
-    times = StageTimes()
-    render_frame(plain, SMALL, Eyepoint.of(0.0, 0.0, 30.0, 0.0, 0.0, 0.0), times=times)
-    assert "terrain" not in times.seconds  # no background stage at all
-    times = StageTimes()
-    render_frame(db, SMALL, Eyepoint.of(0.0, 0.0, 30.0, 0.0, 0.0, 0.0), times=times)
-    assert "terrain" in times.seconds
+    eye = Eyepoint.of(0.0, 0.0, 30.0, 0.0, 0.0, 0.0)
+    trace: dict = {}
+    render_frame(plain, SMALL, eye, trace=trace)
+    assert trace["background"] is None  # no background stage at all
+    render_frame(db, SMALL, eye, trace=trace)
+    assert trace["background"] is not None and trace["background"].air is not None
 
 
 def test_a_coarsened_table_is_reported():

@@ -20,7 +20,7 @@ from channel_worker.pipeline.project import screen_mapping
 from channel_worker.pipeline.render import render_frame
 from channel_worker.pipeline.scene import bundled_scene_path, load_scene
 from channel_worker.pipeline.terrain import render_terrain
-from channel_worker.pipeline.types import ChannelSpec, Eyepoint, StageTimes
+from channel_worker.pipeline.types import ChannelSpec, Eyepoint
 from channel_worker.testing.terrain_reference import single_level_database
 
 from .conftest import box_model
@@ -238,9 +238,9 @@ def test_haze_turns_far_polygons_to_the_haze_colour():
 
 def test_haze_only_runs_the_terrain_stage_for_the_sky():
     db = scene(haze={"visibility_m": 2000.0, "colour": "#c0c8d0"}, sky="#2050c0", earth="#406020")
-    times = StageTimes()
-    img = render_frame(db, CHANNEL, Eyepoint.of(0.0, 0.0, 100.0, 0.0, 0.0, 0.0), times=times)
-    assert "terrain" in times.seconds
+    trace: dict = {}
+    img = render_frame(db, CHANNEL, Eyepoint.of(0.0, 0.0, 100.0, 0.0, 0.0, 0.0), trace=trace)
+    assert trace["background"] is not None
     assert np.isfinite(img.rgb).all()
 
 
@@ -251,9 +251,10 @@ def test_a_scene_without_terrain_or_haze_skips_the_stage():
     db = load_scene(bundled_scene_path())
     assert db.terrain is None and db.haze is None
     eye = Eyepoint.of(0.0, -200.0, 30.0, 0.0, -3.0, 0.0)
-    times, stats = StageTimes(), {}
-    img = render_frame(db, CHANNEL, eye, times=times, stats=stats)
-    assert "terrain" not in times.seconds
+    trace, stats = {}, {}
+    render_frame(db, CHANNEL, eye, trace=trace, stats=stats)
+    assert trace["background"] is None
+    img = render_frame(db, CHANNEL, eye)
     assert not any(k.startswith("terrain") for k in stats)
     explicit = render_frame(dataclasses.replace(db, terrain=None, haze=None), CHANNEL, eye)
     assert np.array_equal(img.rgb, explicit.rgb)
