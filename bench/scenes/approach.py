@@ -48,19 +48,15 @@ from typing import Any
 # Runnable from a plain checkout too.
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from channel_worker.data.build_airfield import (  # noqa: E402
-    Face,
-    Part,
-    box,
+from channel_worker.data.build_airfield import (
     control_tower,
     flat_roof_building,
     fuel_tank,
     gable_building,
     hill,
-    make_part,
-    model_doc,
 )
-from channel_worker.pipeline.types import ChannelSpec, Eyepoint  # noqa: E402
+from channel_worker.data.modelling import Face, Part, box, make_part, model_doc
+from channel_worker.pipeline.types import ChannelSpec, Eyepoint
 
 RUNWAY_LENGTH_M = 3000.0
 RUNWAY_WIDTH_M = 45.0

@@ -22,39 +22,49 @@ channel seams are at +-30 degrees of azimuth from the nose and whose outer edges
   turn and the descent), a water tower, a 150 m radio mast, a power line across the extended
   centreline and hills 5-11 km away for a skyline.
 
-Every model is assembled from parts made by a few helpers (ground_rect, wall_rect, prism, loft,
-pyramid, dome). A part is either a piece of a convex solid, whose every face must point away
-from the part's centroid, or a decal, whose every face points one given way. The helpers wind
-faces counter-clockwise seen from outside by construction, and make_part() checks that, and that
-each face is planar and strictly convex, before anything is written. Bottoms of solids standing
-on the earth are left out: the eye never goes below ground and the earth plane hides them.
-Vertices are rounded to millimetres, so the file is the same on every machine.
+Every model is assembled from parts made with the modelling toolkit
+(channel_worker/data/modelling.py), which checks every face before anything is written. Bottoms
+of solids standing on the earth are left out: the eye never goes below ground and the earth
+plane hides them.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import random
 import sys
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-Vec3 = tuple[float, float, float]
+from channel_worker.data.modelling import (
+    GeometryError,
+    Instance,
+    Part,
+    box,
+    dome,
+    facing_face,
+    ground_rect,
+    ground_rects,
+    instance_doc,
+    loft,
+    model_doc,
+    ngon,
+    prism,
+    pyramid,
+    render_json,
+    round_mm,
+    square,
+    statistics,
+    wall_rect,
+)
 
 #: Where the bundled scene lives (channel_worker.pipeline.scene.bundled_scene_path()).
 OUTPUT = Path(__file__).resolve().with_name("airfield.json")
 #: The same airfield on the bundled terrain, with haze: the demo's scene
 #: (channel_worker.pipeline.scene.demo_scene_path()).
 TERRAIN_OUTPUT = Path(__file__).resolve().with_name("airfield_terrain.json")
-
-#: Vertex coordinates are rounded to this many decimals of a metre.
-_DECIMALS = 3
-#: A face vertex may lie this far off the face's plane after rounding, metres.
-_PLANE_TOL_M = 1e-3
 
 # Surfaces painted on the ground: the runway, taxiways and apron lie just above the earth plane
 # (docs/scene-format.md: the earth is always drawn behind polygons); markings lie in the plane
@@ -87,255 +97,6 @@ TANK_WHITE = "#e7e8e4"
 STEEL = "#8c9196"
 MAST_RED = "#c8342c"
 GREENS = {"fir": "#2f5a2c", "oak": "#4a7832", "poplar": "#5a8636"}
-
-
-@dataclass(frozen=True)
-class Face:
-    """One polygon of a part; indices into the part's vertices, counter-clockwise from outside."""
-
-    indices: tuple[int, ...]
-    colour: str
-    opacity: float = 1.0
-    #: Index, within the model, of the face this one is painted on (scene "on"), and its layer.
-    on: int | None = None
-    layer: int = 1
-
-
-@dataclass(frozen=True)
-class Part:
-    """A convex piece of a model, or a decal.
-
-    Attributes:
-        vertices: model coordinates, metres (x right, y forward, z up), rounded to millimetres.
-        faces: the part's polygons.
-        facing: None for a piece of a convex solid (every face points away from the centroid of
-            the part's vertices); for a decal, the unit vector every face's normal equals.
-    """
-
-    vertices: tuple[Vec3, ...]
-    faces: tuple[Face, ...]
-    facing: Vec3 | None = None
-
-
-@dataclass(frozen=True)
-class Instance:
-    """One placement of a model: world position in metres and heading/pitch/roll in degrees."""
-
-    model: str
-    position: Vec3
-    name: str
-    hpr: Vec3 = (0.0, 0.0, 0.0)
-
-
-class GeometryError(ValueError):
-    """A part whose faces break the scene format or point the wrong way."""
-
-
-# ---------------------------------------------------------------------------------------------
-# Vector helpers (plain tuples: the generator is small and must be exact and repeatable).
-
-def _sub(a: Sequence[float], b: Sequence[float]) -> Vec3:
-    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
-
-
-def _dot(a: Sequence[float], b: Sequence[float]) -> float:
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
-def _cross(a: Sequence[float], b: Sequence[float]) -> Vec3:
-    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _mean(points: Sequence[Sequence[float]]) -> Vec3:
-    n = len(points)
-    return (sum(p[0] for p in points) / n, sum(p[1] for p in points) / n,
-            sum(p[2] for p in points) / n)
-
-
-def newell_normal(points: Sequence[Sequence[float]]) -> Vec3:
-    """Unit normal of a polygon by Newell's method; right-handed, so CCW faces the viewer.
-
-    Raises:
-        GeometryError: the polygon has no area.
-    """
-    nx = ny = nz = 0.0
-    for i, p in enumerate(points):
-        q = points[(i + 1) % len(points)]
-        nx += (p[1] - q[1]) * (p[2] + q[2])
-        ny += (p[2] - q[2]) * (p[0] + q[0])
-        nz += (p[0] - q[0]) * (p[1] + q[1])
-    length = math.sqrt(nx * nx + ny * ny + nz * nz)
-    if length < 1e-9:
-        raise GeometryError(f"polygon {points} has no area")
-    return (nx / length, ny / length, nz / length)
-
-
-def _round(v: float) -> float:
-    r = round(v, _DECIMALS)
-    return 0.0 if r == 0.0 else r  # no "-0.0" in the file
-
-
-# ---------------------------------------------------------------------------------------------
-# Parts. Every helper returns a checked Part.
-
-def make_part(vertices: Iterable[Sequence[float]], faces: Iterable[Face], *,
-              facing: Sequence[float] | None = None) -> Part:
-    """Round the vertices to millimetres and check every face.
-
-    Raises:
-        GeometryError: a face is degenerate, not planar, not strictly convex, or faces inwards
-            (solids) or not along `facing` (decals).
-    """
-    verts = tuple((_round(p[0]), _round(p[1]), _round(p[2])) for p in vertices)
-    part = Part(verts, tuple(faces), None if facing is None else tuple(map(float, facing)))
-    centroid = _mean(verts)
-    for k, face in enumerate(part.faces):
-        pts = [verts[i] for i in face.indices]
-        if len(set(face.indices)) != len(pts) or len(pts) < 3:
-            raise GeometryError(f"face {k}: indices {face.indices} are not >= 3 distinct vertices")
-        n = newell_normal(pts)
-        centre = _mean(pts)
-        off_plane = max(abs(_dot(_sub(p, centre), n)) for p in pts)
-        if off_plane > _PLANE_TOL_M:
-            raise GeometryError(f"face {k}: a vertex lies {off_plane:.4g} m off the plane")
-        for i in range(len(pts)):
-            e0 = _sub(pts[(i + 1) % len(pts)], pts[i])
-            e1 = _sub(pts[(i + 2) % len(pts)], pts[(i + 1) % len(pts)])
-            if _dot(_cross(e0, e1), n) <= 1e-9:
-                raise GeometryError(f"face {k}: not strictly convex at vertex {face.indices[i]}")
-        if part.facing is None:
-            if _dot(n, _sub(centre, centroid)) <= 0.0:
-                raise GeometryError(f"face {k}: normal {n} points into the solid")
-        elif _dot(n, part.facing) < 1.0 - 1e-6:
-            raise GeometryError(f"face {k}: normal {n} is not {part.facing}")
-    return part
-
-
-def ground_rect(x0: float, x1: float, y0: float, y1: float, z: float, colour: str) -> Part:
-    """A rectangle painted on the ground (x0 < x1, y0 < y1, metres), facing up."""
-    return make_part([(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)],
-                     [Face((0, 1, 2, 3), colour)], facing=(0.0, 0.0, 1.0))
-
-
-def ground_rects(rects: Iterable[tuple[float, float, float, float]], z: float, colour: str, *,
-                 on: int | None = None) -> Part:
-    """Several disjoint ground rectangles (x0, x1, y0, y1) as one decal part.
-
-    on: the model face they are painted on (layer 1 above it), or None for a base surface.
-    """
-    vertices: list[Vec3] = []
-    faces = []
-    for x0, x1, y0, y1 in rects:
-        base = len(vertices)
-        vertices += [(x0, y0, z), (x1, y0, z), (x1, y1, z), (x0, y1, z)]
-        faces.append(Face((base, base + 1, base + 2, base + 3), colour, on=on))
-    return make_part(vertices, faces, facing=(0.0, 0.0, 1.0))
-
-
-def wall_rect(x0: float, x1: float, z0: float, z1: float, y: float, colour: str, *,
-              on: int | None = None) -> Part:
-    """A rectangle on the plane y = const facing +y (a door or window band on a front wall);
-    on: the model face (the wall) it is painted on."""
-    # Seen from +y the x axis points left, so counter-clockwise runs from +x to -x along the bottom.
-    return make_part([(x1, y, z0), (x0, y, z0), (x0, y, z1), (x1, y, z1)],
-                     [Face((0, 1, 2, 3), colour, on=on)], facing=(0.0, 1.0, 0.0))
-
-
-def facing_face(part: Part, direction: Sequence[float]) -> int:
-    """Index of the part's face whose outward normal is `direction` (the wall to paint on)."""
-    for k, face in enumerate(part.faces):
-        n = newell_normal([part.vertices[i] for i in face.indices])
-        if _dot(n, direction) > 1.0 - 1e-9:
-            return k
-    raise GeometryError(f"no face of the part faces {tuple(direction)}")
-
-
-def loft(a: Sequence[Vec3], b: Sequence[Vec3], side_colours: str | Sequence[str | None], *,
-         cap_a: str | None = None, cap_b: str | None = None, opacity: float = 1.0) -> Part:
-    """A convex solid between two corresponding loops a and b (a prism, frustum or extrusion).
-
-    Both loops run counter-clockwise seen from beyond b looking back towards a (for a vertical
-    prism: counter-clockwise seen from above, a the bottom). Side i joins edge i -> i+1 of a to
-    the same edge of b and must be planar; its colour is side_colours[i] (or one colour for
-    every side), None to leave the side out. cap_a / cap_b colour the end faces; None leaves
-    them out. opacity applies to the sides.
-    """
-    n = len(a)
-    if len(b) != n:
-        raise GeometryError(f"loops of {len(a)} and {len(b)} vertices")
-    colours = [side_colours] * n if isinstance(side_colours, str) else list(side_colours)
-    faces = [Face((i, (i + 1) % n, n + (i + 1) % n, n + i), c, opacity)
-             for i, c in enumerate(colours) if c is not None]
-    if cap_b is not None:
-        faces.append(Face(tuple(range(n, 2 * n)), cap_b))
-    if cap_a is not None:
-        faces.append(Face(tuple(reversed(range(n))), cap_a))
-    return make_part(list(a) + list(b), faces)
-
-
-def prism(base: Sequence[tuple[float, float]], z0: float, z1: float,
-          side_colours: str | Sequence[str | None], *, top: str | None = None,
-          bottom: str | None = None, opacity: float = 1.0) -> Part:
-    """A vertical prism over a convex base polygon (x, y counter-clockwise from above), z0 < z1."""
-    return loft([(x, y, z0) for x, y in base], [(x, y, z1) for x, y in base], side_colours,
-                cap_a=bottom, cap_b=top, opacity=opacity)
-
-
-def box(x0: float, x1: float, y0: float, y1: float, z0: float, z1: float, walls: str, *,
-        top: str | None = None, bottom: str | None = None) -> Part:
-    """An axis-aligned box (x0 < x1, y0 < y1, z0 < z1, metres)."""
-    return prism(rect(x0, x1, y0, y1), z0, z1, walls, top=top, bottom=bottom)
-
-
-def pyramid(base: Sequence[Vec3], apex: Vec3, colour: str, *, bottom: str | None = None) -> Part:
-    """A pyramid over a convex planar base (counter-clockwise seen from the apex's side)."""
-    n = len(base)
-    faces = [Face((i, (i + 1) % n, n), colour) for i in range(n)]
-    if bottom is not None:
-        faces.append(Face(tuple(reversed(range(n))), bottom))
-    return make_part(list(base) + [apex], faces)
-
-
-def rect(x0: float, x1: float, y0: float, y1: float) -> list[tuple[float, float]]:
-    """Rectangle corners counter-clockwise from above."""
-    return [(x0, y0), (x1, y0), (x1, y1), (x0, y1)]
-
-
-def ngon(cx: float, cy: float, radius: float, n: int, *, phase_deg: float = 0.0,
-         z: float | None = None) -> list:
-    """Regular n-gon counter-clockwise from above; radius to the vertices, metres.
-
-    With z given the points are (x, y, z) triples, otherwise (x, y) pairs.
-    """
-    pts = []
-    for i in range(n):
-        a = math.radians(phase_deg + 360.0 * i / n)
-        x, y = cx + radius * math.cos(a), cy + radius * math.sin(a)
-        pts.append((x, y) if z is None else (x, y, z))
-    return pts
-
-
-def square(half: float, z: float) -> list[Vec3]:
-    """Square of half-size `half` about the z axis at height z, counter-clockwise from above."""
-    return [(-half, -half, z), (half, -half, z), (half, half, z), (-half, half, z)]
-
-
-def dome(rings: Sequence[Sequence[Vec3]], apex: Vec3, colours: Sequence[str]) -> Part:
-    """A hill: triangles between successive rings (each counter-clockwise from above, the same
-    vertex count, bottom first) and a fan up to the apex. colours[k] paints band k (the last
-    band is the fan). Triangles are always planar, so the rings may be irregular."""
-    n = len(rings[0])
-    vertices = [p for ring in rings for p in ring] + [apex]
-    faces = []
-    for k in range(len(rings) - 1):
-        lo, hi = k * n, (k + 1) * n
-        for i in range(n):
-            j = (i + 1) % n
-            faces.append(Face((lo + i, lo + j, hi + j), colours[k]))
-            faces.append(Face((lo + i, hi + j, hi + i), colours[k]))
-    top = (len(rings) - 1) * n
-    faces += [Face((top + i, top + (i + 1) % n, len(vertices) - 1), colours[-1]) for i in range(n)]
-    return make_part(vertices, faces)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -608,7 +369,7 @@ def build_instances() -> list[Instance]:
     out += _town()
     for k, (bearing, rng) in enumerate(HILLS_AT):
         b = math.radians(bearing)
-        position = (_round(rng * math.sin(b)), _round(rng * math.cos(b)), 0.0)
+        position = (round_mm(rng * math.sin(b)), round_mm(rng * math.cos(b)), 0.0)
         out.append(Instance(f"hill_{k + 1}", position, f"hill {k + 1}"))
     return out
 
@@ -622,8 +383,8 @@ def _trees() -> list[Instance]:
     out = []
 
     def plant(kind: str, x: float, y: float, label: str) -> None:
-        out.append(Instance(kind, (_round(x), _round(y), 0.0), label,
-                            (_round(rng.uniform(0.0, 360.0)), 0.0, 0.0)))
+        out.append(Instance(kind, (round_mm(x), round_mm(y), 0.0), label,
+                            (round_mm(rng.uniform(0.0, 360.0)), 0.0, 0.0)))
 
     for k, y in enumerate(range(-1040, 1041, 40)):
         plant("fir" if k % 3 else "oak", -300.0 + rng.uniform(-4.0, 4.0),
@@ -672,7 +433,7 @@ def build_scene() -> dict[str, Any]:
         # at are lit, and east/west walls differ in shade.
         "lighting": {"sun_heading_deg": 210.0, "sun_elevation_deg": 38.0, "ambient": 0.4},
         "models": {name: model_doc(parts) for name, parts in models.items()},
-        "instances": [_instance_doc(i) for i in instances],
+        "instances": [instance_doc(i) for i in instances],
     }
 
 
@@ -689,83 +450,11 @@ def build_terrain_scene() -> dict[str, Any]:
     doc["clouds"] = {"extent_m": [-30000.0, -30000.0, 30000.0, 30000.0], "cell_m": 400.0,
                      "base_m": 1100.0, "thickness_m": 700.0, "cover": 0.3,
                      "extinction_per_m": 0.02, "colour": "#f4f6fa", "seed": 7}
-    # Seed 004's layered fog: mist 1.2 km visibility in the lowest valleys (120 m below the
-    # runway), thinning to clear air 40 m above it.
+    # Layered fog: mist of 1.2 km visibility in the lowest valleys (120 m below the runway),
+    # thinning to clear air 40 m above it.
     doc["fog"] = {"origin_m": [0.0, 0.0, -120.0], "spacing_m": 40.0,
                   "visibility_m": [1200.0, 2500.0, 6000.0, 20000.0, None], "colour": "#d4d8dc"}
     return doc
-
-
-def model_doc(parts: Sequence[Part]) -> dict[str, Any]:
-    """One model's JSON: the parts' vertices concatenated, face indices rebased; a face's "on"
-    is an index among the model's faces in the order the parts list them."""
-    vertices: list[list[float]] = []
-    faces: list[dict[str, Any]] = []
-    for part in parts:
-        base = len(vertices)
-        vertices += [list(v) for v in part.vertices]
-        for f in part.faces:
-            face: dict[str, Any] = {"indices": [base + i for i in f.indices], "colour": f.colour}
-            if f.opacity != 1.0:
-                face["opacity"] = f.opacity
-            if f.on is not None:
-                face["on"] = f.on
-                face["layer"] = f.layer
-            faces.append(face)
-    return {"vertices": vertices, "faces": faces}
-
-
-def _instance_doc(inst: Instance) -> dict[str, Any]:
-    doc: dict[str, Any] = {"model": inst.model, "position": [float(c) for c in inst.position]}
-    if any(inst.hpr):
-        doc["hpr"] = [float(a) for a in inst.hpr]
-    doc["name"] = inst.name
-    return doc
-
-
-def render_json(doc: Any) -> str:
-    """The document as text: one vertex, face or instance per line, so diffs stay readable."""
-    return _dump(doc, 0) + "\n"
-
-
-def _dump(value: Any, indent: int) -> str:
-    if _is_leafy(value):
-        return json.dumps(value, ensure_ascii=False)
-    pad, inner = " " * indent, " " * (indent + 2)
-    if isinstance(value, dict):
-        items = [f"{inner}{json.dumps(k)}: {_dump(v, indent + 2)}" for k, v in value.items()]
-        return "{\n" + ",\n".join(items) + "\n" + pad + "}"
-    items = [inner + _dump(v, indent + 2) for v in value]
-    return "[\n" + ",\n".join(items) + "\n" + pad + "]"
-
-
-def _is_leafy(value: Any) -> bool:
-    """Whether a value goes on one line: a scalar, a list of scalars, or a small object of those
-    (a face, an instance, the lighting: at most _LEAF_KEYS keys)."""
-    def scalar_or_flat(v: Any) -> bool:
-        return not isinstance(v, (dict, list)) or (
-            isinstance(v, list) and all(not isinstance(x, (dict, list)) for x in v))
-    if isinstance(value, dict):
-        return len(value) <= _LEAF_KEYS and all(scalar_or_flat(v) for v in value.values())
-    return scalar_or_flat(value)
-
-
-#: An instance has at most four keys (model, position, hpr, name); larger objects are spread out.
-_LEAF_KEYS = 4
-
-
-def statistics(doc: dict[str, Any]) -> dict[str, int]:
-    """Counts that describe the scene: models, their faces, instances, and the faces and
-    translucent faces of all instances together (what the pipeline transforms per frame)."""
-    faces = {name: m["faces"] for name, m in doc["models"].items()}
-    placed = [faces[i["model"]] for i in doc["instances"]]
-    return {
-        "models": len(faces),
-        "model_faces": sum(len(f) for f in faces.values()),
-        "instances": len(placed),
-        "instance_faces": sum(len(f) for f in placed),
-        "translucent_faces": sum(1 for f in placed for face in f if face.get("opacity", 1.0) < 1.0),
-    }
 
 
 def main(argv: Sequence[str] | None = None) -> int:

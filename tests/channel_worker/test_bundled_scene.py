@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from channel_worker.data import build_airfield
+from channel_worker.data import build_airfield, modelling
 from channel_worker.pipeline.geometry import hpr_matrix
 from channel_worker.pipeline.render import render_frame
 from channel_worker.pipeline.scene import bundled_scene_path, demo_scene_path, load_scene
@@ -40,10 +40,10 @@ def _newell(points: np.ndarray) -> np.ndarray:
 def test_checked_in_json_is_what_the_generator_writes():
     assert build_airfield.OUTPUT == bundled_scene_path()
     assert build_airfield.TERRAIN_OUTPUT == demo_scene_path()
-    expected = build_airfield.render_json(build_airfield.build_scene())
+    expected = modelling.render_json(build_airfield.build_scene())
     assert bundled_scene_path().read_text(encoding="utf-8") == expected, (
         "airfield.json is stale: run python -m channel_worker.data.build_airfield")
-    expected = build_airfield.render_json(build_airfield.build_terrain_scene())
+    expected = modelling.render_json(build_airfield.build_terrain_scene())
     assert demo_scene_path().read_text(encoding="utf-8") == expected, (
         "airfield_terrain.json is stale: run python -m channel_worker.data.build_airfield")
 
@@ -117,26 +117,10 @@ def test_ground_features_lie_where_the_brief_puts_them(doc):
     assert all(f["on"] == 0 and f["layer"] == 1 for f in markings)
 
 
-def test_geometry_errors_are_caught_when_parts_are_made():
-    square = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 1.0, 0.0), (0.0, 1.0, 0.0)]
-    down = build_airfield.Face((3, 2, 1, 0), "#ffffff")
-    with pytest.raises(build_airfield.GeometryError, match="is not"):
-        build_airfield.make_part(square, [down], facing=(0.0, 0.0, 1.0))
-    with pytest.raises(build_airfield.GeometryError, match="not strictly convex"):
-        dented = build_airfield.Face((0, 1, 2, 4, 3), "#ffffff")
-        build_airfield.make_part(square + [(0.5, 0.2, 0.0)], [dented], facing=(0.0, 0.0, 1.0))
-    # A box whose roof is wound clockwise from above points into the solid.
-    walls = build_airfield.box(0.0, 1.0, 0.0, 1.0, 0.0, 1.0, "#ffffff", top="#ffffff")
-    roof = walls.faces[-1]
-    flipped = [*walls.faces[:-1], build_airfield.Face(tuple(reversed(roof.indices)), roof.colour)]
-    with pytest.raises(build_airfield.GeometryError, match="points into the solid"):
-        build_airfield.make_part(walls.vertices, flipped)
-
-
 # --- (c) it loads and renders ---------------------------------------------------------------------
 
 def test_loads_with_a_sensible_size(doc, database):
-    stats = build_airfield.statistics(doc)
+    stats = modelling.statistics(doc)
     assert database.feature_count == stats["instance_faces"]
     assert 300 <= database.feature_count <= 2000
     assert database.instance_model.shape[0] == stats["instances"]
