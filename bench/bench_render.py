@@ -37,7 +37,7 @@ from channel_worker.pipeline.render import render_frame  # noqa: E402
 from channel_worker.pipeline.scene import bundled_scene_path, load_scene  # noqa: E402
 from channel_worker.pipeline.types import ChannelSpec, Database, Eyepoint, StageTimes  # noqa: E402
 from host_sim.flight import bundled_flight  # noqa: E402
-from services.rig import default_rig_path, load_rig  # noqa: E402
+from services.rig.rigfile import default_rig_path, load_rig  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SIZES = ((1024, 768), (1280, 1024))

@@ -358,7 +358,7 @@ def bundled(record: dict, quick: bool, repeats: int, progress: Progress) -> None
     from channel_worker.pipeline.samples import sample_pattern
     from channel_worker.pipeline.scene import demo_scene_path, load_scene
     from host_sim.flight import bundled_flight
-    from services.rig import default_rig_path, load_rig
+    from services.rig.rigfile import default_rig_path, load_rig
 
     progress("bundled terrain: loading the demo scene (builds the terrain on first use)")
     demo = load_scene(demo_scene_path())
@@ -468,7 +468,7 @@ def no_terrain(record: dict, repeats: int, progress: Progress) -> None:
         load_scene,
     )
     from host_sim.flight import bundled_flight
-    from services.rig import default_rig_path, load_rig
+    from services.rig.rigfile import default_rig_path, load_rig
 
     flat = load_scene(bundled_scene_path())
     demo = load_scene(demo_scene_path())

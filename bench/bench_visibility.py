@@ -280,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
     json_path.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
     written = [json_path]
     if gl_image is not None and "rgss4" in images:
-        from services.image_io import write_image
+        from services.rig.image_io import write_image
 
         side = args.out / "approach_side_by_side.png"
         write_image(side, np.concatenate([images["rgss4"], gl_image], axis=1),

@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Render and write the frame; 0 on success, 2 on bad input."""
-    from services.image_io import write_image
+    from services.rig.image_io import write_image
 
     try:
         database = load_scene(args.scene or bundled_scene_path())

@@ -6,7 +6,7 @@ import argparse
 import logging
 import threading
 
-from services.cli_common import (
+from services.rig.cli_common import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
@@ -37,8 +37,8 @@ def run(args: argparse.Namespace) -> int:
     Returns 0 ok, 1 cannot listen, 2 bad input (rig, channel, scene, samples, or a host that
     does not know the channel).
     """
-    from services.grpc_util import configure_logging, stop_on_signals
-    from services.rig import RigError, bind_address
+    from services.rig.grpc_util import configure_logging, stop_on_signals
+    from services.rig.rigfile import RigError, bind_address
 
     from .pipeline.scene import SceneError, bundled_scene_path, load_scene
     from .worker import ChannelWorker, serve_worker

@@ -20,11 +20,11 @@ from dataclasses import asdict, dataclass
 import grpc
 import numpy as np
 
-from host_sim.publisher import eyepoint_of
 from ig.v1 import (compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc, worker_pb2,
                    worker_pb2_grpc)
-from services.grpc_util import (RPC_DEADLINE_S, STREAM_DEADLINE_S, add_health, bind, make_channel, make_server,
+from services.rig.grpc_util import (RPC_DEADLINE_S, STREAM_DEADLINE_S, add_health, bind, make_channel, make_server,
                                 set_not_serving)
+from services.rig.wire import eyepoint_from_proto
 
 from .pipeline.render import render_frame
 from .pipeline.types import ChannelSpec, Database, Eyepoint
@@ -243,7 +243,7 @@ class ChannelWorker:
         t0 = time.perf_counter()
         try:
             stats: dict[str, int] = {}
-            image = render_frame(self.database, self.channel, eyepoint_of(frame.eyepoint),
+            image = render_frame(self.database, self.channel, eyepoint_from_proto(frame.eyepoint),
                                  out=self._rgb, stats=stats, **self.options)
             with self._lock:
                 self.counters.translucent_dropped += stats.get("translucent_dropped", 0)

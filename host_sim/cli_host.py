@@ -13,7 +13,7 @@ import logging
 import math
 import threading
 
-from services.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error,
+from services.rig.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error,
                                  load_rig_or_report, non_negative, positive)
 
 log = logging.getLogger("ig.host")
@@ -63,8 +63,8 @@ def run(args: argparse.Namespace) -> int:
     """Serve HostService until the run ends or SIGTERM; 0 ok, 1 cannot listen, 2 bad input."""
     from host_sim.publisher import FramePublisher
     from host_sim.server import serve
-    from services.grpc_util import configure_logging, stop_on_signals
-    from services.rig import bind_address
+    from services.rig.grpc_util import configure_logging, stop_on_signals
+    from services.rig.rigfile import bind_address
 
     configure_logging(args.verbose)
     rig = load_rig_or_report(args.rig, "host")

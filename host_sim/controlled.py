@@ -17,7 +17,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from channel_worker.pipeline.types import Eyepoint
+from services.rig.frame import Eyepoint
 
 from . import flight_model
 from .flight import EYE_HEIGHT_M, START_XY_M

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from channel_worker.pipeline.types import Eyepoint
+from services.rig.frame import Eyepoint
 
 #: Standard gravity, m/s^2; a coordinated turn has heading rate g tan(bank) / speed.
 G_MPS2 = 9.80665

@@ -17,9 +17,9 @@ import uuid
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
-from channel_worker.pipeline.geometry import check_eyepoint
-from channel_worker.pipeline.types import Eyepoint
 from ig.v1 import frame_pb2
+from services.rig.frame import Eyepoint, check_eyepoint
+from services.rig.wire import eyepoint_to_proto
 
 log = logging.getLogger("ig.host")
 
@@ -312,15 +312,6 @@ class FramePublisher:
 def make_frame(number: int, sim_time: float, sample_time: float, eyepoint: Eyepoint, run_id: str,
                publish_time: float) -> frame_pb2.Frame:
     """The Frame message of one eyepoint."""
-    x, y, z = (float(v) for v in eyepoint.position)
     return frame_pb2.Frame(
         frame_number=number, sim_time_s=sim_time, publish_time_unix_s=publish_time,
-        control_sample_time_unix_s=sample_time, run_id=run_id,
-        eyepoint=frame_pb2.Eyepoint(x=x, y=y, z=z, heading_deg=eyepoint.heading_deg,
-                                    pitch_deg=eyepoint.pitch_deg, roll_deg=eyepoint.roll_deg),
-    )
-
-
-def eyepoint_of(msg: frame_pb2.Eyepoint) -> Eyepoint:
-    """The pipeline's Eyepoint of a protobuf Eyepoint."""
-    return Eyepoint.of(msg.x, msg.y, msg.z, msg.heading_deg, msg.pitch_deg, msg.roll_deg)
+        control_sample_time_unix_s=sample_time, run_id=run_id, eyepoint=eyepoint_to_proto(eyepoint))

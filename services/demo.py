@@ -22,10 +22,10 @@ from typing import IO
 import grpc
 
 from ig.v1 import compositor_pb2, compositor_pb2_grpc
-from services.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, load_rig_or_report, non_negative,
+from services.rig.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, load_rig_or_report, non_negative,
                                  pixels, positive)
-from services.grpc_util import RPC_DEADLINE_S, make_channel
-from services.rig import Rig
+from services.rig.grpc_util import RPC_DEADLINE_S, make_channel
+from services.rig.rigfile import Rig, rig_toml
 
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
@@ -61,20 +61,6 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
-
-
-def rig_toml(rig: Rig) -> str:
-    """A rig file for rig (the inverse of services.rig.parse_rig)."""
-    lines = [f'[host]\naddress = "{rig.host_address}"\n', f'[compositor]\naddress = "{rig.compositor_address}"\n']
-    for ch in rig.channels:
-        s = ch.spec
-        lines.append(
-            f'[[channels]]\nname = "{s.name}"\naddress = "{ch.address}"\n'
-            f"yaw_deg = {s.yaw_deg!r}\npitch_deg = {s.pitch_deg!r}\nroll_deg = {s.roll_deg!r}\n"
-            f"left_deg = {s.left_deg!r}\nright_deg = {s.right_deg!r}\n"
-            f"bottom_deg = {s.bottom_deg!r}\ntop_deg = {s.top_deg!r}\n"
-            f"width = {s.width}\nheight = {s.height}\n")
-    return "\n".join(lines)
 
 
 def local_rig(rig: Rig) -> Rig:

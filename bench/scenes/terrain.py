@@ -231,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     print(path)
     print(json.dumps(describe(terrain), indent=1))
     if args.preview:
-        from services.image_io import write_image
+        from services.rig.image_io import write_image
 
         lv, p = args.level, terrain.page_size
         nx, ny = terrain.level_size(lv)

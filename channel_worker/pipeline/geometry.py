@@ -11,8 +11,10 @@ import math
 
 import numpy as np
 
+from services.rig.frame import ChannelSpec, Eyepoint, check_channel, check_eyepoint
+
 from ._geometry_kernels import transform_kernel
-from .types import ChannelSpec, Database, DrawList, Eyepoint, Polygons, View
+from .types import Database, DrawList, Polygons, View
 
 
 def hpr_matrix(heading_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
@@ -23,38 +25,6 @@ def hpr_matrix(heading_deg: float, pitch_deg: float, roll_deg: float) -> np.ndar
     rp = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
     rr = np.array([[cr, 0.0, sr], [0.0, 1.0, 0.0], [-sr, 0.0, cr]])
     return rh @ rp @ rr
-
-
-def check_eyepoint(eyepoint: Eyepoint) -> None:
-    """Raise ValueError naming the first non-finite field of the eyepoint."""
-    pos = np.asarray(eyepoint.position)
-    if pos.shape != (3,):
-        raise ValueError(f"eyepoint.position: shape {pos.shape} is not (3,)")
-    for i in range(3):
-        if not math.isfinite(float(pos[i])):
-            raise ValueError(f"eyepoint.position[{i}]: {pos[i]} is not finite")
-    for name in ("heading_deg", "pitch_deg", "roll_deg"):
-        value = getattr(eyepoint, name)
-        if not math.isfinite(float(value)):
-            raise ValueError(f"eyepoint.{name}: {value} is not finite")
-
-
-def check_channel(channel: ChannelSpec) -> None:
-    """Raise ValueError naming the first field of the channel that cannot make a frustum."""
-    if channel.width < 1 or channel.height < 1:
-        raise ValueError(f"channel {channel.name!r}: size {channel.width} x {channel.height} is empty")
-    for name in ("left_deg", "right_deg", "bottom_deg", "top_deg", "yaw_deg", "pitch_deg", "roll_deg"):
-        value = float(getattr(channel, name))
-        if not math.isfinite(value):
-            raise ValueError(f"channel {channel.name!r}: {name} {value} is not finite")
-    for name in ("left_deg", "right_deg", "bottom_deg", "top_deg"):
-        value = float(getattr(channel, name))
-        if not -89.0 <= value <= 89.0:
-            raise ValueError(f"channel {channel.name!r}: {name} {value} is outside [-89, 89]")
-    if not channel.left_deg < channel.right_deg:
-        raise ValueError(f"channel {channel.name!r}: left_deg {channel.left_deg} is not < right_deg {channel.right_deg}")
-    if not channel.bottom_deg < channel.top_deg:
-        raise ValueError(f"channel {channel.name!r}: bottom_deg {channel.bottom_deg} is not < top_deg {channel.top_deg}")
 
 
 def make_view(channel: ChannelSpec, eyepoint: Eyepoint, *, near: float = 0.25,

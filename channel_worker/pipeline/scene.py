@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from services.rig.colour import srgb_to_linear
+
 from .clouds import Clouds, cloud_layer
 from .fog import KOSCHMIEDER, MAX_FOG_PLANES, Fog
 from .geometry import hpr_matrix
@@ -69,11 +71,6 @@ def parse_scene(doc: Any, *, source: str = "<scene>", base_dir: str | Path | Non
         base_dir: directory relative terrain paths are taken from (default: the current one).
     """
     return _Parser(source, Path(base_dir) if base_dir is not None else Path.cwd()).database(doc)
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """sRGB-encoded [0, 1] -> linear (IEC 61966-2-1)."""
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 class _Parser:

@@ -25,6 +25,8 @@ import math
 
 import numpy as np
 
+from services.rig.colour import srgb_to_linear
+
 from ._cloud_kernels import scan_clouds_kernel
 from ._terrain_kernels import (
     PRE_CHANNELS,
@@ -39,7 +41,6 @@ from .fog import F_COARSENED, average_floor
 from .haze import OPAQUE_TAU, beta_at, sky_haze_table
 from .horizon import earth_dz_row, earth_dz_screen, height_above_earth
 from .project import screen_mapping
-from .scene import srgb_to_linear
 from .types import Background, Database, View
 
 #: Level bias: voxels are kept between 2**bias and 2**(bias + 1) projected pixels wide.

@@ -14,6 +14,8 @@ from typing import Any
 
 import numpy as np
 
+from services.rig.frame import ChannelSpec, Eyepoint  # noqa: F401  (until the stage split)
+
 #: Feature identity stored for samples that no polygon covers.
 SKY_ID = -1
 EARTH_ID = -2
@@ -25,61 +27,6 @@ BACKGROUND_ID = -3
 #: and edge functions are evaluated exactly in int64 (watertight, see raster.py).
 SUBPIXEL_BITS = 8
 SUBPIXEL = 1 << SUBPIXEL_BITS
-
-
-@dataclass(frozen=True)
-class Eyepoint:
-    """Where the aircraft's eye is and how it is oriented.
-
-    Attributes:
-        position: world position, metres, float64 (3,).
-        heading_deg: clockwise from north.
-        pitch_deg: nose-up positive.
-        roll_deg: right-wing-down positive.
-    """
-
-    position: np.ndarray
-    heading_deg: float
-    pitch_deg: float
-    roll_deg: float
-
-    @staticmethod
-    def of(x: float, y: float, z: float, h: float, p: float, r: float) -> "Eyepoint":
-        return Eyepoint(np.array([x, y, z], dtype=np.float64), float(h), float(p), float(r))
-
-
-@dataclass(frozen=True)
-class ChannelSpec:
-    """One window of the rig: its offset from the aircraft nose, frustum and raster size.
-
-    Angles in degrees. The frustum angles are measured in the channel's own frame and may be
-    asymmetric (left < right, bottom < top, each strictly inside (-90, 90)).
-    """
-
-    name: str
-    width: int
-    height: int
-    left_deg: float
-    right_deg: float
-    bottom_deg: float
-    top_deg: float
-    yaw_deg: float = 0.0
-    pitch_deg: float = 0.0
-    roll_deg: float = 0.0
-
-    @staticmethod
-    def symmetric(name: str, width: int, height: int, fov_h_deg: float,
-                  fov_v_deg: float | None = None, *, yaw_deg: float = 0.0,
-                  pitch_deg: float = 0.0, roll_deg: float = 0.0) -> "ChannelSpec":
-        """A centred frustum; without fov_v the pixels are square."""
-        half_h = fov_h_deg / 2.0
-        if fov_v_deg is None:
-            tan_v = np.tan(np.radians(half_h)) * height / width
-            half_v = float(np.degrees(np.arctan(tan_v)))
-        else:
-            half_v = fov_v_deg / 2.0
-        return ChannelSpec(name, int(width), int(height), -half_h, half_h, -half_v, half_v,
-                           yaw_deg, pitch_deg, roll_deg)
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from channel_worker.pipeline.scene import srgb_to_linear
+from services.rig.colour import srgb_to_linear
 
 from .database import TerrainError
 

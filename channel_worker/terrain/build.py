@@ -35,8 +35,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from channel_worker.pipeline.scene import srgb_to_linear
-from services.image_io import linear_to_srgb8
+from services.rig.colour import srgb_to_linear
+from services.rig.colour import linear_to_srgb8
 
 from .database import DEFAULT_PAGE_SIZE, Pattern, TerrainDatabase, TerrainError, page_layout
 from .sources import bilinear

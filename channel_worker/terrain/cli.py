@@ -7,7 +7,7 @@ import math
 import time
 from pathlib import Path
 
-from services.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, positive
+from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, positive
 
 from .database import DEFAULT_PAGE_SIZE, TerrainDatabase, TerrainError
 from .sources import DEFAULT_COLOUR

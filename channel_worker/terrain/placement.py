@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host_sim.replay.geodetic import enu, geodetic_of_enu
+from services.rig.geodetic import enu, geodetic_of_enu
 
 from .database import TerrainError
 from .sources import ElevationGrid, bilinear, fractional_index

@@ -181,7 +181,7 @@ def image_colours(path: Path, node_shape: tuple[int, int]) -> np.ndarray:
     """
     import OpenImageIO as oiio
 
-    from services.image_io import srgb8_to_linear
+    from services.rig.colour import srgb8_to_linear
 
     inp = oiio.ImageInput.open(str(path))
     if inp is None:

@@ -11,7 +11,7 @@ import math
 import threading
 from dataclasses import dataclass
 
-from channel_worker.pipeline.types import Eyepoint
+from services.rig.frame import Eyepoint
 
 from .track import Track
 

@@ -15,9 +15,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from channel_worker.pipeline.types import Eyepoint
+from services.rig import geodetic
+from services.rig.frame import Eyepoint
 
-from . import attitude, geodetic
+from . import attitude
 
 log = logging.getLogger("ig.host.replay")
 

@@ -6,7 +6,7 @@ import argparse
 import threading
 from pathlib import Path
 
-from services.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error,
+from services.rig.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error,
                                  load_rig_or_report, non_negative, positive)
 
 
@@ -30,8 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Serve CompositorService until the run ends (--once) or SIGTERM; 0 ok, 1 failed, 2 bad input."""
-    from services.grpc_util import configure_logging, stop_on_signals
-    from services.rig import bind_address
+    from services.rig.grpc_util import configure_logging, stop_on_signals
+    from services.rig.rigfile import bind_address
 
     from .server import Compositor, serve
 

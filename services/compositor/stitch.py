@@ -11,7 +11,7 @@ from typing import Callable
 
 import numpy as np
 
-from services.image_io import write_image
+from services.rig.image_io import write_image
 
 from .gather import CompleteFrame
 

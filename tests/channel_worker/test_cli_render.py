@@ -6,7 +6,7 @@ import json
 import numpy as np
 
 from channel_worker import cli_render
-from services.image_io import read_image
+from services.rig.image_io import read_image
 
 
 def run(argv):

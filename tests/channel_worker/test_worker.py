@@ -74,7 +74,7 @@ def test_pixels_are_little_endian_half_rows_top_first():
 def test_status_rpc_reports_the_counters(make_scene, box_model_factory):
     from channel_worker.worker import SERVICE, WorkerStatusServicer
     from ig.v1 import worker_pb2, worker_pb2_grpc
-    from services.grpc_util import add_health, check_health, make_channel, make_server
+    from services.rig.grpc_util import add_health, check_health, make_channel, make_server
 
     w, _ = worker(make_scene, box_model_factory)
     w._handle(frame(0))
@@ -101,11 +101,11 @@ def test_status_rpc_reports_the_counters(make_scene, box_model_factory):
 def test_a_refused_subscription_ends_the_worker_with_the_reason(make_scene, box_model_factory):
     import threading
 
-    from channel_worker.pipeline.types import Eyepoint
+    from services.rig.frame import Eyepoint
     from host_sim.publisher import FramePublisher
     from host_sim.server import HostServicer
     from ig.v1 import host_pb2_grpc
-    from services.grpc_util import make_server
+    from services.rig.grpc_util import make_server
 
     pub = FramePublisher(source=lambda t: Eyepoint.of(0, 0, 10, 0, 0, 0), channels=["left"], duration_s=0.0)
     stop = threading.Event()

@@ -5,7 +5,7 @@ import time
 
 import pytest
 
-from channel_worker.pipeline.types import Eyepoint
+from services.rig.frame import Eyepoint
 from host_sim.publisher import ChannelTaken, FramePublisher, UnknownChannel
 
 

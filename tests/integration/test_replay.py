@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from services.demo import local_rig, rig_toml
-from services.image_io import read_image
-from services.rig import default_rig_path, load_rig
+from services.demo import local_rig
+from services.rig.image_io import read_image
+from services.rig.rigfile import default_rig_path, load_rig, rig_toml
 
 from .conftest import start, wait_all
 

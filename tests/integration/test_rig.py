@@ -27,10 +27,10 @@ from ig.v1 import (
     worker_pb2_grpc,
 )
 
-from services.demo import local_rig, rig_toml
-from services.grpc_util import check_health, make_channel
-from services.image_io import read_image
-from services.rig import default_rig_path, load_rig
+from services.demo import local_rig
+from services.rig.grpc_util import check_health, make_channel
+from services.rig.image_io import read_image
+from services.rig.rigfile import default_rig_path, load_rig, rig_toml
 
 from .conftest import ROOT, start, wait_all
 

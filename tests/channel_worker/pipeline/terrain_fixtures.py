@@ -15,7 +15,8 @@ import math
 import numpy as np
 
 from channel_worker.pipeline.samples import sample_pattern
-from channel_worker.pipeline.scene import parse_scene, srgb_to_linear
+from channel_worker.pipeline.scene import parse_scene
+from services.rig.colour import srgb_to_linear
 from channel_worker.pipeline.terrain import render_terrain
 from channel_worker.pipeline.types import Database
 from channel_worker.terrain.build import build_terrain

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from channel_worker.terrain.build import build_terrain, level_nodes
 from channel_worker.terrain.database import CORNERS, Pattern, TerrainError, level_count
 from channel_worker.terrain.features import TREE_PATTERN
-from services.image_io import linear_to_srgb8, srgb8_to_linear
+from services.rig.colour import linear_to_srgb8, srgb8_to_linear
 
 
 def grey(shape, value=0.25):

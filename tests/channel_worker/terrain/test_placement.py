@@ -8,7 +8,7 @@ import pytest
 from channel_worker.terrain.database import TerrainError
 from channel_worker.terrain.placement import MAX_NODES, native_spacing_m, place
 from channel_worker.terrain.sources import ElevationGrid, open_elevation
-from host_sim.replay import geodetic
+from services.rig import geodetic
 
 LAT0, LON0 = 36.6, -84.2
 

@@ -162,7 +162,7 @@ def test_bad_colour_urls_are_named():
 
 
 def test_an_image_is_stretched_over_the_extent_top_row_north(tmp_path):
-    from services.image_io import write_image
+    from services.rig.image_io import write_image
     red, green, blue, white = [1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [1.0, 1.0, 1.0]
     write_image(tmp_path / "map.png", np.array([[red, green], [blue, white]], np.float32))
     colours = colour_nodes(str(tmp_path / "map.png"), np.zeros((11, 21)), spacing_m=5.0)

@@ -13,7 +13,7 @@ import pytest
 
 from channel_worker.pipeline.geometry import make_view
 from channel_worker.pipeline.samples import sample_pattern
-from channel_worker.pipeline.scene import srgb_to_linear
+from services.rig.colour import srgb_to_linear
 from channel_worker.pipeline.types import ChannelSpec, Eyepoint
 from channel_worker.terrain.database import Pattern, TerrainDatabase
 from channel_worker.testing.terrain_reference import (

@@ -18,7 +18,7 @@ ROWS = flight()
 
 def expected_position(t):
     """The flight's ENU position at a record time (the logs store positions at ~1e-9 deg)."""
-    from host_sim.replay.geodetic import enu
+    from services.rig.geodetic import enu
     row = ROWS[int(t)]
     return enu(np.array([row[1]]), np.array([row[2]]), np.array([row[3]]), ORIGIN)[0]
 

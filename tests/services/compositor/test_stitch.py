@@ -5,7 +5,7 @@ import pytest
 
 from services.compositor.gather import ChannelImage, CompleteFrame
 from services.compositor.stitch import FrameWriter, stitch
-from services.image_io import read_image
+from services.rig.image_io import read_image
 
 
 def complete(n, heights=(2, 2)):

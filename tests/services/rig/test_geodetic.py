@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from host_sim.replay import geodetic
+from services.rig import geodetic
 
 
 def test_ecef_of_known_points():

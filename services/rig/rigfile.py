@@ -8,7 +8,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from channel_worker.pipeline.types import ChannelSpec
+from .frame import ChannelSpec
 
 
 class RigError(ValueError):
@@ -62,7 +62,7 @@ class Rig:
 def default_rig_path() -> Path:
     """The default three-channel rig shipped with the package (same as deploy/rigs/default.toml).
 
-    It is package data (services/data/default_rig.toml), so it is found from an editable
+    It is package data (services/rig/data/default_rig.toml), so it is found from an editable
     install, a wheel and a source checkout alike; tests/services/test_rig.py keeps the deploy
     copy identical.
     """
@@ -183,6 +183,20 @@ def _address(value: Any, where: str, fail) -> str:
     if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
         raise fail(where, f"{value!r} is not host:port with a port in [1, 65535]")
     return value
+
+
+def rig_toml(rig: Rig) -> str:
+    """A rig file for rig (the inverse of parse_rig)."""
+    lines = [f'[host]\naddress = "{rig.host_address}"\n', f'[compositor]\naddress = "{rig.compositor_address}"\n']
+    for ch in rig.channels:
+        s = ch.spec
+        lines.append(
+            f'[[channels]]\nname = "{s.name}"\naddress = "{ch.address}"\n'
+            f"yaw_deg = {s.yaw_deg!r}\npitch_deg = {s.pitch_deg!r}\nroll_deg = {s.roll_deg!r}\n"
+            f"left_deg = {s.left_deg!r}\nright_deg = {s.right_deg!r}\n"
+            f"bottom_deg = {s.bottom_deg!r}\ntop_deg = {s.top_deg!r}\n"
+            f"width = {s.width}\nheight = {s.height}\n")
+    return "\n".join(lines)
 
 
 def port_of(address: str) -> int:

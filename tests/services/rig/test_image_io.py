@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from services.image_io import _srgb_encode, linear_to_srgb8, read_image, srgb8_to_linear, write_image
+from services.rig.colour import _srgb_encode, linear_to_srgb8, srgb8_to_linear
+from services.rig.image_io import read_image, write_image
 
 
 def test_srgb8_table_matches_the_transfer_function():

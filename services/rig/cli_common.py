@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from services.rig import Rig, RigError, default_rig_path, load_rig
+from .rigfile import Rig, RigError, default_rig_path, load_rig
 
 #: Exit codes of every `ig` subcommand.
 EXIT_OK = 0
@@ -17,7 +17,7 @@ def add_rig_arguments(parser: argparse.ArgumentParser, *, bind: bool = True) -> 
     """--rig, --verbose and (for services that listen) --bind."""
     parser.add_argument("--rig", default=None,
                         help="rig file (docs/rig-format.md); default: the bundled three-channel rig on "
-                             "127.0.0.1 (services/data/default_rig.toml)")
+                             "127.0.0.1 (services/rig/data/default_rig.toml)")
     if bind:
         parser.add_argument("--bind", default=None, metavar="ADDR",
                             help="listen on this interface (e.g. 0.0.0.0) at the port of the rig address, "

@@ -2,9 +2,9 @@
 
 import pytest
 
-from services.rig import RigError, channel_spec, default_rig_path, load_rig, parse_rig
+from services.rig.rigfile import RigError, channel_spec, default_rig_path, load_rig, parse_rig
 
-ROOT = default_rig_path().parent.parent.parent
+ROOT = default_rig_path().parents[3]
 
 
 def test_default_rig_is_three_60x45_channels():

@@ -1,0 +1,56 @@
+"""sRGB <-> linear colour (IEC 61966-2-1), for scene colours, terrain databases and images.
+
+Scenes and terrain databases store sRGB-encoded colours; everything inside the pipeline is
+linear light; images written as 8-bit are sRGB again. The 8-bit encoder is a numba pass,
+because it runs on every stitched frame on the compositor's critical path.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """sRGB-encoded [0, 1] -> linear."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _srgb_encode(c: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function (IEC 61966-2-1) on linear values in [0, 1]."""
+    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * np.power(c, 1.0 / 2.4) - 0.055)
+
+
+# Linear values quantised to 16 bits address this table: a step of 1/65535 moves the sRGB value
+# by at most 12.92/65535 (the steepest slope, at black), a fifth of an 8-bit level, and the
+# table is ten times faster than evaluating the power per pixel of a 3072 x 768 frame.
+_LUT_SIZE = 1 << 16
+_SRGB8_LUT = np.round(_srgb_encode(np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) * 255.0).astype(np.uint8)
+
+
+def linear_to_srgb8(rgb: np.ndarray) -> np.ndarray:
+    """Encode linear RGB (any shape, last axis channels) as sRGB 8-bit; NaN -> 0, clipped to [0, 1]."""
+    c = np.ascontiguousarray(rgb, dtype=np.float32)
+    out = np.empty(c.shape, np.uint8)
+    _encode_kernel(c.reshape(-1), _SRGB8_LUT, out.reshape(-1))
+    return out
+
+
+@njit(cache=True)
+def _encode_kernel(c, lut, out):
+    """One pass of clip, quantise and table look-up (the numpy chain of the same took ~10 x
+    longer on a stitched 3072 x 768 frame, on the compositor's critical path)."""
+    top = lut.shape[0] - 1
+    for i in range(c.shape[0]):
+        v = c[i]
+        if not v > 0.0:  # also NaN
+            out[i] = lut[0]
+        elif v >= 1.0:
+            out[i] = lut[top]
+        else:
+            out[i] = lut[int(v * np.float32(top) + np.float32(0.5))]
+
+
+def srgb8_to_linear(srgb: np.ndarray) -> np.ndarray:
+    """Inverse of linear_to_srgb8, float32."""
+    return srgb_to_linear(srgb.astype(np.float32) / np.float32(255.0)).astype(np.float32)
