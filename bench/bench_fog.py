@@ -45,6 +45,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from common import bench_parser, finish, replot  # bench/ is on the path as a script
+from services.rig.options import RenderOptions
 
 SPACING_M = 20.0
 #: Ground fog, 1/m at planes 0, 20, ..., 300 m: the dense layer is plane 5 (100 m).
@@ -104,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     from bench_render import machine
     from bench_terrain import git_state
 
-    from channel_worker.pipeline import fog as fog_module
+    from channel_worker.pipeline.fog import fog as fog_module
 
     progress = Progress()
     fog_source = Path(fog_module.__file__).read_bytes()
@@ -158,9 +159,10 @@ def frame_costs(repeats: int, quick: bool, progress) -> list[dict[str, Any]]:
     bundled terrain under haze and clouds (fog adds to every texel and sample)."""
     import dataclasses
 
+    from channel_worker.pipeline.contract import StageTimes
     from channel_worker.pipeline.render import render_frame
-    from channel_worker.pipeline.scene import demo_scene_path, load_scene
-    from channel_worker.pipeline.types import ChannelSpec, Eyepoint, StageTimes
+    from channel_worker.pipeline.scene.load import demo_scene_path, load_scene
+    from services.rig.frame import ChannelSpec, Eyepoint
 
     demo = load_scene(demo_scene_path())
     flat = load_scene(demo_scene_path().with_name("airfield.json"))
@@ -179,8 +181,7 @@ def frame_costs(repeats: int, quick: bool, progress) -> list[dict[str, Any]]:
                 for i in range(repeats + 1):  # the first: a warm-up (numba compiles)
                     times = StageTimes()
                     t0 = time.perf_counter()
-                    render_frame(db, channel, eye, samples=FRAME["samples"], with_range=False,
-                                 out=out, times=times)
+                    render_frame(db, channel, eye, RenderOptions(samples=FRAME["samples"], with_range=False), out=out, times=times)
                     if i:
                         frames.append(time.perf_counter() - t0)
                         stages.append(times.seconds)
@@ -194,7 +195,7 @@ def frame_costs(repeats: int, quick: bool, progress) -> list[dict[str, Any]]:
 
 
 def make_fog(factor: float):
-    from channel_worker.pipeline.fog import Fog
+    from channel_worker.pipeline.scene.atmosphere import Fog
 
     return Fog(axis=np.array([0.0, 0.0, 1.0]), origin=np.zeros(3), spacing_m=SPACING_M,
                extinction=np.array(EXTINCTION), colour=np.array([0.8, 0.82, 0.85], np.float32),
@@ -238,7 +239,8 @@ def transmission_error(ours: np.ndarray, exact: np.ndarray) -> dict[str, float]:
 
 def run(record: dict, eyes, repeats: int, lookup_rays: int, error_rays: int, grid_ranges: int,
         progress: Progress) -> None:
-    from channel_worker.pipeline.fog import F_DT, F_N, fog_depths, fog_params
+    from channel_worker.pipeline.contract import F_DT, F_N
+    from channel_worker.pipeline.fog.fog import fog_depths, fog_params
     from channel_worker.testing.fog_reference import strata
 
     st = strata(make_fog(1.0))
@@ -319,7 +321,7 @@ def seed_comparison(eyes, st, rand_c, rand_r, graz_c, graz_r, look_c, look_r,
     """The seed's own look-up for comparison: the stored average interpolated linearly, with
     the resample planes as far apart as the sample planes (fog.py's table at factor 1; only
     the interpolation differs: the closed form beyond the table and the sky are fog.py's)."""
-    from channel_worker.pipeline.fog import fog_params
+    from channel_worker.pipeline.fog.fog import fog_params
 
     worst, means, lookup = 0.0, [], []
     for _, h in eyes:
@@ -359,7 +361,8 @@ def _seed_depths(f, ranges, cos):
 def _make_seed_kernel():
     from numba import njit
 
-    from channel_worker.pipeline.fog import F_INV_DT, F_J0, F_N, F_TABLE, fog_depth
+    from channel_worker.pipeline.contract import F_INV_DT, F_J0, F_N, F_TABLE
+    from channel_worker.pipeline.fog.fog import fog_depth
 
     @njit(cache=False)
     def kernel(f, ranges, cos):

@@ -33,11 +33,14 @@ import numpy as np
 # Runnable from a plain checkout too (`python bench/bench_render.py` puts bench/ first on the path).
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from channel_worker.pipeline.contract import StageTimes  # noqa: E402
 from channel_worker.pipeline.render import render_frame  # noqa: E402
-from channel_worker.pipeline.scene import bundled_scene_path, load_scene  # noqa: E402
-from channel_worker.pipeline.types import ChannelSpec, Database, Eyepoint, StageTimes  # noqa: E402
+from channel_worker.pipeline.scene.database import Database  # noqa: E402
+from channel_worker.pipeline.scene.load import bundled_scene_path, load_scene  # noqa: E402
 from host_sim.flight import bundled_flight  # noqa: E402
+from services.rig.frame import ChannelSpec, Eyepoint  # noqa: E402
 from services.rig.rigfile import default_rig_path, load_rig  # noqa: E402
+from services.rig.options import RenderOptions  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SIZES = ((1024, 768), (1280, 1024))
@@ -56,8 +59,7 @@ def measure(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, sample
     out = np.empty((channel.height, channel.width, 3), np.float32)
     for _ in range(repeats):
         times = StageTimes()
-        render_frame(database, channel, eyepoint, samples=samples, times=times, with_range=False,
-                     out=out)
+        render_frame(database, channel, eyepoint, RenderOptions(samples=samples, with_range=False), times=times, out=out)
         runs.append(times)
     stages = {stage: statistics.median(r.seconds[stage] for r in runs) for stage in runs[0].seconds}
     return stages, statistics.median(r.total for r in runs)
@@ -192,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     for width, height in SIZES:
         for samples in SAMPLES:
             render_frame(database, rig.with_size(width, height).channels[1].spec,
-                         flight.eyepoint_at(times_s[0]), samples=samples)
+                         flight.eyepoint_at(times_s[0]), RenderOptions(samples=samples))
 
     rows: list[dict[str, Any]] = []
     stages: list[str] = []

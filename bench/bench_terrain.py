@@ -50,6 +50,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from common import bench_parser, finish, replot  # bench/ is on the path as a script
+from services.rig.options import RenderOptions
 
 #: The issue's channel: 1280 x 1024, 60 degrees across, square pixels, 4 samples (rgss4).
 WIDTH, HEIGHT, FOV_H_DEG, SAMPLES = 1280, 1024, 60.0, "rgss4"
@@ -136,7 +137,7 @@ def preimage_oversample(value: float) -> Iterator[None]:
     """Render with PREIMAGE_OVERSAMPLE = value: the function render_terrain calls is replaced
     for the duration. (Up to 95de649 setting the module constant did nothing, preimage_grid's
     default argument having been bound at import; this works before and after.)"""
-    from channel_worker.pipeline import terrain
+    from channel_worker.pipeline.background import terrain
 
     original = terrain.preimage_grid
 
@@ -205,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def sweep_channel(width: int = WIDTH, height: int = HEIGHT):
     """The issue's channel: width x height, FOV_H_DEG across, square pixels."""
-    from channel_worker.pipeline.types import ChannelSpec
+    from services.rig.frame import ChannelSpec
 
     half_v = math.degrees(math.atan(math.tan(math.radians(0.5 * FOV_H_DEG)) * height / width))
     return ChannelSpec("bench", width, height, -0.5 * FOV_H_DEG, 0.5 * FOV_H_DEG, -half_v, half_v)
@@ -221,15 +222,14 @@ def frame_case(database, channel, eyepoint, repeats: int, *, alone: bool = False
     """Time render_frame as a channel worker calls it (colour only, into a reused buffer) and,
     with alone, render_terrain called by itself (per-sample depth everywhere), alternating the
     two in every repetition so that a busy moment of the machine falls on both alike."""
-    from channel_worker.pipeline.geometry import make_view
+    from channel_worker.pipeline.background.terrain import render_terrain
+    from channel_worker.pipeline.contract import StageTimes
+    from channel_worker.pipeline.geometry.view import make_view
     from channel_worker.pipeline.render import render_frame
-    from channel_worker.pipeline.samples import sample_pattern
-    from channel_worker.pipeline.terrain import render_terrain
-    from channel_worker.pipeline.types import StageTimes
 
     out = np.empty((channel.height, channel.width, 3), np.float32)
     view = make_view(channel, eyepoint)
-    offsets = sample_pattern(SAMPLES)
+    offsets = RenderOptions(samples=SAMPLES).sample_offsets()
     runs: list[StageTimes] = []
     walls: list[float] = []
     alone_walls: list[float] = []
@@ -238,7 +238,7 @@ def frame_case(database, channel, eyepoint, repeats: int, *, alone: bool = False
         times = StageTimes()
         stats.clear()
         t0 = time.perf_counter()
-        render_frame(database, channel, eyepoint, samples=SAMPLES, with_range=False, out=out,
+        render_frame(database, channel, eyepoint, RenderOptions(samples=SAMPLES, with_range=False), out=out,
                      times=times, stats=stats)
         t1 = time.perf_counter()
         if alone:
@@ -354,9 +354,8 @@ def check_seed(rows: list[dict], altitudes, pitches) -> dict[str, Any]:
 
 def bundled(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
     from bench.scenes.terrain import describe
-    from channel_worker.pipeline.geometry import make_view
-    from channel_worker.pipeline.samples import sample_pattern
-    from channel_worker.pipeline.scene import demo_scene_path, load_scene
+    from channel_worker.pipeline.geometry.view import make_view
+    from channel_worker.pipeline.scene.load import demo_scene_path, load_scene
     from host_sim.flight import bundled_flight
     from services.rig.rigfile import default_rig_path, load_rig
 
@@ -364,7 +363,7 @@ def bundled(record: dict, quick: bool, repeats: int, progress: Progress) -> None
     demo = load_scene(demo_scene_path())
     channel = load_rig(default_rig_path()).with_size(WIDTH, HEIGHT).channels[1].spec
     flight = bundled_flight()
-    offsets = sample_pattern(SAMPLES)
+    offsets = RenderOptions(samples=SAMPLES).sample_offsets()
     times_s = QUICK["flight"] if quick else FLIGHT_TIMES_S
     variants = {"terrain+haze+clouds (demo)": demo,
                 "terrain+haze": dataclasses.replace(demo, clouds=None),
@@ -427,8 +426,8 @@ def stage_split(database, view, offsets: np.ndarray, repeats: int) -> dict[str, 
     Each repetition times the column scan, the cloud scan and the whole stage one after the
     other, so that a busy moment of the machine falls on all three alike; the warp is the
     median of the per-repetition remainders."""
-    from channel_worker.pipeline import terrain as T
-    from channel_worker.pipeline.haze import haze_params
+    from channel_worker.pipeline.background import terrain as T
+    from channel_worker.pipeline.background.haze import haze_params
 
     grid = T.preimage_grid(view)
     haze = haze_params(database.haze, float(view.eye[2]))
@@ -459,14 +458,9 @@ def stage_split(database, view, offsets: np.ndarray, repeats: int) -> dict[str, 
 
 def no_terrain(record: dict, repeats: int, progress: Progress) -> None:
     """The flat airfield (no terrain, no haze) skips the stage; haze or clouds alone run it."""
-    from channel_worker.pipeline import terrain as T
-    from channel_worker.pipeline.geometry import make_view
-    from channel_worker.pipeline.samples import sample_pattern
-    from channel_worker.pipeline.scene import (
-        bundled_scene_path,
-        demo_scene_path,
-        load_scene,
-    )
+    from channel_worker.pipeline.background import terrain as T
+    from channel_worker.pipeline.geometry.view import make_view
+    from channel_worker.pipeline.scene.load import bundled_scene_path, demo_scene_path, load_scene
     from host_sim.flight import bundled_flight
     from services.rig.rigfile import default_rig_path, load_rig
 
@@ -485,7 +479,7 @@ def no_terrain(record: dict, repeats: int, progress: Progress) -> None:
         rows.append({"scene": name, "terrain_stage_run": case["terrain_ms"] is not None, **case})
     # What deciding to skip costs: render_terrain on the flat scene returns None at once.
     view = make_view(channel, eye)
-    offsets = sample_pattern(SAMPLES)
+    offsets = RenderOptions(samples=SAMPLES).sample_offsets()
     walls, result = timed(lambda: T.render_terrain(flat, view, offsets), 1000)
     record["no_terrain"] = {
         "eyepoint": "bundled flight t = 20 s", "channel": channel.name, "samples": SAMPLES,
@@ -504,7 +498,7 @@ LEVEL_RED = (40, 90, 130, 165, 195, 220, 240, 255)
 def level_probe_database(n: int = 8192, spacing: float = 1.0, page_size: int = 64):
     """A flat database whose level L is coloured (LEVEL_RED[L], 0, 0); every page of a level is
     one stored page, so it costs a few pages."""
-    from channel_worker.terrain.database import TerrainDatabase, page_layout
+    from channel_worker.pipeline.scene.terrain.database import TerrainDatabase, page_layout
 
     pages_x, pages_y, table_offset = page_layout(n, n, page_size)
     levels = len(pages_x)
@@ -527,9 +521,9 @@ def level_window(record: dict, progress: Progress) -> None:
     """Which level each bias draws straight below the eye, as the eye climbs: the measured
     window of voxel widths in pixels (docs/terrain.md: 2**bias to 2**(bias + 1))."""
     from bench.scenes.terrain import terrain_scene
-    from channel_worker.pipeline.geometry import make_view
-    from channel_worker.pipeline.terrain import _SRGB_LUT, render_terrain
-    from channel_worker.pipeline.types import ChannelSpec, Eyepoint
+    from channel_worker.pipeline.background.terrain import _SRGB_LUT, render_terrain
+    from channel_worker.pipeline.geometry.view import make_view
+    from services.rig.frame import ChannelSpec, Eyepoint
 
     probe = level_probe_database()
     database = terrain_scene(probe)
@@ -571,9 +565,8 @@ def level_window(record: dict, progress: Progress) -> None:
 
 def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
     from bench.scenes.terrain import eyepoint_above, fractal_terrain, terrain_scene
-    from channel_worker.pipeline import terrain as T
-    from channel_worker.pipeline.geometry import make_view
-    from channel_worker.pipeline.samples import sample_pattern
+    from channel_worker.pipeline.background import terrain as T
+    from channel_worker.pipeline.geometry.view import make_view
 
     terrain = fractal_terrain()
     database = terrain_scene(terrain, sky=GREY, earth=GREY)
@@ -583,7 +576,7 @@ def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> No
     views = QUICK["error_views"] if quick else ERROR_VIEWS
     biases = QUICK["biases"] if quick else BIASES
     oversamples = QUICK["oversamples"] if quick else OVERSAMPLES
-    rgss4 = sample_pattern(SAMPLES)
+    rgss4 = RenderOptions(samples=SAMPLES).sample_offsets()
     centre = np.array([[0.5, 0.5]])
     both = np.concatenate([rgss4, centre])  # the reference traces these five per pixel
 
@@ -669,7 +662,7 @@ def reference_subset(terrain, view, offsets: np.ndarray, stride: int) -> dict[st
     """The exact reference for every stride-th pixel (each way) of a view: the rays through
     the given sample offsets of pixels (stride // 2 + k stride), as reference_terrain traces
     them for a whole raster. Returns ys, xs and (h, w, S) rgb / range / hit."""
-    from channel_worker.pipeline.project import screen_mapping
+    from channel_worker.pipeline.geometry.view import screen_mapping
     from channel_worker.testing.terrain_reference import reference_rays
 
     sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)

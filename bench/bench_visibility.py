@@ -38,6 +38,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from common import pin_to_one_cpu  # bench/ is on the path when run as a script
+from services.rig.options import RenderOptions
 
 RESULTS = Path(__file__).resolve().parent / "results"
 PATTERNS = ("centre", "rgss4", "d3d8", "d3d16")
@@ -100,11 +101,10 @@ def main(argv: list[str] | None = None) -> int:
         approach_scene,
         scene_counts,
     )
-    from channel_worker.pipeline.binning import DEFAULT_SUBAREA
+    from channel_worker.pipeline.binning.binning import DEFAULT_SUBAREA
+    from channel_worker.pipeline.contract import StageTimes
     from channel_worker.pipeline.render import render_frame
-    from channel_worker.pipeline.samples import sample_pattern
-    from channel_worker.pipeline.scene import parse_scene
-    from channel_worker.pipeline.types import StageTimes
+    from channel_worker.pipeline.scene.load import parse_scene
 
     doc = approach_scene()
     database = parse_scene(doc, source="bench approach scene")
@@ -131,8 +131,7 @@ def main(argv: list[str] | None = None) -> int:
 
     # What the frame holds after culling, backface elimination and clipping.
     trace: dict[str, Any] = {}
-    render_frame(database, channel, eyepoint, samples="rgss4", filter="box", trace=trace,
-                 with_range=False)
+    render_frame(database, channel, eyepoint, RenderOptions(samples="rgss4", filter="box", with_range=False), trace=trace)
     screen = trace["screen"]
     frame = {"polygons": screen.count,
              "translucent_polygons": int((screen.opacity < 1.0).sum())}
@@ -141,8 +140,7 @@ def main(argv: list[str] | None = None) -> int:
           f"box-filtered to {width} x {height}", file=sys.stderr)
     t0 = time.perf_counter()
     fine = approach_channel(width * supersample, height * supersample)
-    ref_rgb = render_frame(database, fine, eyepoint, samples=REFERENCE_PATTERN,
-                           with_range=False).rgb
+    ref_rgb = render_frame(database, fine, eyepoint, RenderOptions(samples=REFERENCE_PATTERN, with_range=False)).rgb
     reference = box_downsample(ref_rgb, supersample)
     del ref_rgb
     reference_s = time.perf_counter() - t0
@@ -167,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
             if subarea == (DEFAULT_SUBAREA if DEFAULT_SUBAREA in subareas else subareas[0]):
                 images[pattern] = rgb.copy()
             rows.append({
-                "pattern": pattern, "samples": int(sample_pattern(pattern).shape[0]),
+                "pattern": pattern, "samples": int(RenderOptions(samples=pattern).sample_offsets().shape[0]),
                 "subarea": subarea,
                 "stages_ms": {s: 1e3 * statistics.median(r.seconds.get(s, 0.0) for r in runs)
                               for s in stages},
@@ -255,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
                       f"{height * supersample} raster (same frustum), box-filtered "
                       f"{supersample} x {supersample} down to {width} x {height}",
             "effective_samples_per_pixel": supersample * supersample
-            * int(sample_pattern(REFERENCE_PATTERN).shape[0]),
+            * int(RenderOptions(samples=REFERENCE_PATTERN).sample_offsets().shape[0]),
             "seconds": reference_s,
             "note": "the same visibility algorithm: the error measures sampling (aliasing) "
                     "error, not errors the algorithm would make at any sample count",
@@ -300,22 +298,21 @@ def exact_reference_errors(quick: bool) -> dict[str, Any]:
     order (channel_worker/testing/plates.py): the accuracy the tests bound, as speed against
     error. The approach scene's order is not known (crossing billboards), hence this scene."""
     from channel_worker.pipeline.render import render_frame
-    from channel_worker.pipeline.samples import sample_pattern
-    from channel_worker.pipeline.scene import parse_scene
-    from channel_worker.pipeline.types import ChannelSpec, Eyepoint
+    from channel_worker.pipeline.scene.load import parse_scene
     from channel_worker.testing.coverage_reference import (
         depth_order,
         reference_pixels,
         sky_backdrop,
     )
     from channel_worker.testing.plates import OVERHEAD_EYEPOINT, overhead_scene_doc
+    from services.rig.frame import ChannelSpec, Eyepoint
 
     width, height = (160, 120) if quick else (640, 480)
     db = parse_scene(overhead_scene_doc(), source="plates")
     channel = ChannelSpec.symmetric("plates", width, height, 60.0)
     eye = Eyepoint.of(*OVERHEAD_EYEPOINT)
     trace: dict = {}
-    render_frame(db, channel, eye, samples="centre", trace=trace)
+    render_frame(db, channel, eye, RenderOptions(samples="centre"), trace=trace)
     screen = trace["screen"]
     t0 = time.perf_counter()
     ref = reference_pixels(screen, width, height, depth_order(screen), sky_backdrop(db)).rgb
@@ -323,12 +320,12 @@ def exact_reference_errors(quick: bool) -> dict[str, Any]:
     out = np.empty((height, width, 3), np.float32)
     rows = []
     for pattern in PATTERNS:
-        render_frame(db, channel, eye, samples=pattern, out=out)  # compile, warm
+        render_frame(db, channel, eye, RenderOptions(samples=pattern), out=out)  # compile, warm
         t0 = time.perf_counter()
-        render_frame(db, channel, eye, samples=pattern, out=out)
+        render_frame(db, channel, eye, RenderOptions(samples=pattern), out=out)
         ms = (time.perf_counter() - t0) * 1000.0
         err = np.abs(out.astype(np.float64) - ref)
-        rows.append({"pattern": pattern, "samples": int(sample_pattern(pattern).shape[0]),
+        rows.append({"pattern": pattern, "samples": int(RenderOptions(samples=pattern).sample_offsets().shape[0]),
                      "rmse": float(np.sqrt(np.mean(err ** 2))), "max_abs": float(err.max()),
                      "ms": ms})
     return {"scene": "channel_worker/testing/plates.py overhead plates (8, two translucent)",

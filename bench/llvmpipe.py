@@ -48,12 +48,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from channel_worker.pipeline.backface import eliminate_backfaces  # noqa: E402
-from channel_worker.pipeline.clip import clip  # noqa: E402
-from channel_worker.pipeline.cull import cull  # noqa: E402
-from channel_worker.pipeline.geometry import make_view, to_eye  # noqa: E402
-from channel_worker.pipeline.horizon import earth_dz_screen  # noqa: E402
-from channel_worker.pipeline.types import ChannelSpec, Database, Eyepoint, View  # noqa: E402
+from channel_worker.pipeline.contract import View  # noqa: E402
+from channel_worker.pipeline.geometry.backface import eliminate_backfaces  # noqa: E402
+from channel_worker.pipeline.geometry.clip import clip  # noqa: E402
+from channel_worker.pipeline.geometry.cull import cull  # noqa: E402
+from channel_worker.pipeline.geometry.transform import to_eye  # noqa: E402
+from channel_worker.pipeline.geometry.view import (
+    earth_dz_screen,  # noqa: E402
+    make_view,  # noqa: E402
+)
+from channel_worker.pipeline.scene.database import Database  # noqa: E402
+from services.rig.frame import ChannelSpec, Eyepoint  # noqa: E402
 
 #: Environment that makes Mesa use llvmpipe on a surfaceless EGL display (no X, no GPU).
 MESA_ENV = {"LIBGL_ALWAYS_SOFTWARE": "1", "GALLIUM_DRIVER": "llvmpipe",
@@ -368,7 +373,7 @@ def main(argv: list[str] | None = None) -> int:
         os.sched_setaffinity(0, {args.cpu})  # before Mesa starts its threads: they inherit it
 
     from bench.scenes.approach import approach_channel, approach_eyepoint, approach_scene
-    from channel_worker.pipeline.scene import parse_scene
+    from channel_worker.pipeline.scene.load import parse_scene
 
     try:
         import moderngl  # noqa: F401

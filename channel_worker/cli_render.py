@@ -6,10 +6,9 @@ import argparse
 import sys
 import time
 
-from .pipeline.render import render_frame
-from .pipeline.scene import SceneError, bundled_scene_path, load_scene
-from .pipeline.types import ChannelSpec, Eyepoint, StageTimes
-from .quality import add_quality_arguments, quality_options
+from services.rig.frame import ChannelSpec, Eyepoint
+from services.rig.options import add_render_arguments, from_arguments
+from services.rig.report import FrameReport
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="vertical field of view, degrees (default: square pixels)")
     parser.add_argument("--channel-hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
                         help="channel yaw, pitch, roll offset from the aircraft nose, degrees")
-    add_quality_arguments(parser, renderer=True)
+    add_render_arguments(parser, renderer=True, with_range=True)
     parser.add_argument("--out", required=True,
                         help="output image: .exr (linear float RGB + Z range in metres) or .png (sRGB 8-bit)")
     parser.add_argument("--times", action="store_true", help="print the time of each pipeline stage")
@@ -35,19 +34,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Render and write the frame; 0 on success, 2 on bad input."""
+    # The pipeline (numba) and OpenImageIO are imported here, not at the top: `ig` builds every
+    # subcommand's parser, and the host must not pay for (or import) the renderer.
     from services.rig.image_io import write_image
 
+    from .pipeline.render import render_frame
+    from .pipeline.scene.load import SceneError, bundled_scene_path, load_scene
+
     try:
+        options = from_arguments(args)
         database = load_scene(args.scene or bundled_scene_path())
         channel = ChannelSpec.symmetric("render", args.width, args.height, args.fov_h, args.fov_v,
                                         yaw_deg=args.channel_hpr[0], pitch_deg=args.channel_hpr[1],
                                         roll_deg=args.channel_hpr[2])
         eyepoint = Eyepoint.of(*args.eye, *args.hpr)
-        times = StageTimes()
-        stats: dict[str, int] = {}
+        report = FrameReport()
         t0 = time.perf_counter()
-        image = render_frame(database, channel, eyepoint, times=times, stats=stats,
-                             **quality_options(args))
+        image = render_frame(database, channel, eyepoint, options, report=report)
         elapsed = time.perf_counter() - t0
     except (SceneError, ValueError) as exc:
         print(f"ig render: error: {exc}", file=sys.stderr)
@@ -59,8 +62,8 @@ def run(args: argparse.Namespace) -> int:
         "channel_yaw_deg": channel.yaw_deg, "channel_pitch_deg": channel.pitch_deg,
         "channel_roll_deg": channel.roll_deg,
         "frustum_deg": f"{channel.left_deg} {channel.right_deg} {channel.bottom_deg} {channel.top_deg}",
-        "samples": str(args.samples), "scene": str(database.source),
-        "renderer": args.renderer, "filter": args.filter,
+        "samples": options.samples, "scene": str(database.source),
+        "renderer": options.renderer, "filter": options.filter,
     }
     try:
         write_image(args.out, image.rgb, range_m=image.range_m, attributes=attributes)
@@ -68,9 +71,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"ig render: error: {exc}", file=sys.stderr)
         return 2
     if args.times:
-        for stage, seconds in times.seconds.items():
+        for stage, seconds in report.stage_seconds.items():
             print(f"{stage:>10} {seconds * 1000:9.2f} ms")
-        for name, value in stats.items():
+        for name, value in report.counters.items():
             print(f"{name:>24} {value}")
     print(f"wrote {args.out} ({channel.width} x {channel.height}, {elapsed * 1000:.1f} ms)")
     return 0

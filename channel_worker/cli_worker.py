@@ -14,8 +14,7 @@ from services.rig.cli_common import (
     error,
     load_rig_or_report,
 )
-
-from .quality import add_quality_arguments, check_options, quality_options
+from services.rig.options import add_render_arguments, from_arguments
 
 log = logging.getLogger("ig.worker")
 
@@ -26,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--channel", required=True, help="name of the rig channel to render")
     parser.add_argument("--scene", default=None,
                         help="scene JSON (docs/scene-format.md); default: the bundled airfield")
-    add_quality_arguments(parser)
+    add_render_arguments(parser)
     parser.add_argument("--once", action="store_true",
                         help="exit when the host's run ends (default: wait for the next run)")
 
@@ -37,10 +36,10 @@ def run(args: argparse.Namespace) -> int:
     Returns 0 ok, 1 cannot listen, 2 bad input (rig, channel, scene, samples, or a host that
     does not know the channel).
     """
+    from channel_worker.pipeline.scene.load import SceneError, bundled_scene_path, load_scene
     from services.rig.grpc_util import configure_logging, stop_on_signals
     from services.rig.rigfile import RigError, bind_address
 
-    from .pipeline.scene import SceneError, bundled_scene_path, load_scene
     from .worker import ChannelWorker, serve_worker
 
     configure_logging(args.verbose)
@@ -49,8 +48,8 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     try:
         channel = rig.channel(args.channel)
-        options = quality_options(args)
-        check_options(options)
+        # The rig file's [render] table, under this command line's flags.
+        options = from_arguments(args, base=rig.render)
         # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
         database = load_scene(args.scene or bundled_scene_path())
     except (RigError, SceneError, ValueError) as exc:
@@ -61,8 +60,6 @@ def run(args: argparse.Namespace) -> int:
     stop_on_signals(stop)
     worker = ChannelWorker(database, channel.spec, host_address=rig.host_address,
                            compositor_address=rig.compositor_address, options=options, once=args.once)
-    log.info("worker %s: compiling kernels", channel.name)
-    worker.warm_up()
     try:
         serve_worker(worker, bind_address(channel.address, args.bind), stop)
     except OSError as exc:

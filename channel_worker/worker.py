@@ -19,15 +19,33 @@ from dataclasses import asdict, dataclass
 
 import grpc
 import numpy as np
+from ig.v1 import (
+    compositor_pb2,
+    compositor_pb2_grpc,
+    frame_pb2,
+    host_pb2,
+    host_pb2_grpc,
+    worker_pb2,
+    worker_pb2_grpc,
+)
 
-from ig.v1 import (compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc, worker_pb2,
-                   worker_pb2_grpc)
-from services.rig.grpc_util import (RPC_DEADLINE_S, STREAM_DEADLINE_S, add_health, bind, make_channel, make_server,
-                                set_not_serving)
-from services.rig.wire import eyepoint_from_proto
+from services.rig.frame import ChannelSpec, Eyepoint
+from services.rig.grpc_util import (
+    RPC_DEADLINE_S,
+    STREAM_DEADLINE_S,
+    add_health,
+    bind,
+    make_channel,
+    make_server,
+    set_not_serving,
+    set_serving,
+)
+from services.rig.options import RenderOptions
+from services.rig.report import FrameReport
+from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_proto
 
 from .pipeline.render import render_frame
-from .pipeline.types import ChannelSpec, Database, Eyepoint
+from .pipeline.scene.database import Database
 
 log = logging.getLogger("ig.worker")
 SERVICE = "ig.v1.ChannelWorkerService"
@@ -109,19 +127,21 @@ class ChannelWorker:
         channel: this channel's view.
         host_address: host:port of HostService.
         compositor_address: host:port of CompositorService.
-        samples: sample pattern name or count.
-        options: further render_frame keyword arguments (filter, subarea, max_translucent,
-            and samples, which then overrides the argument).
+        options: the render options (with_range is turned off: the compositor takes colour
+            only).
         once: stop when the host's run ends instead of subscribing again for the next run.
     """
 
     def __init__(self, database: Database, channel: ChannelSpec, *, host_address: str,
-                 compositor_address: str, samples: int | str = 4, options: dict | None = None,
+                 compositor_address: str, options: RenderOptions | None = None,
                  once: bool = False) -> None:
         self.database = database
         self.channel = channel
-        # The compositor takes colour only: no per-pixel ranges.
-        self.options = {"samples": samples, **(options or {}), "with_range": False}
+        self.options = (options or RenderOptions()).replace(with_range=False)
+        #: Stage times and counters of the last frame rendered.
+        self.last_report = FrameReport()
+        #: True once a warm-up frame has rendered (kernels compiled or loaded from the cache).
+        self.ready = False
         # One colour array for every frame: it is encoded for the compositor before the next
         # frame is rendered, and reusing it spares faulting in fresh pages each frame.
         self._rgb = np.empty((channel.height, channel.width, 3), np.float32)
@@ -145,13 +165,16 @@ class ChannelWorker:
         """
         tiny = ChannelSpec("warm-up", 8, 6, self.channel.left_deg, self.channel.right_deg,
                            self.channel.bottom_deg, self.channel.top_deg)
-        render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), **self.options)
+        render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
+        self.ready = True
 
     def status(self) -> worker_pb2.GetWorkerStatusResponse:
         """A consistent copy of the counters."""
         with self._lock:
-            return worker_pb2.GetWorkerStatusResponse(channel_name=self.channel.name, subscribed=self._subscribed,
-                                                      **asdict(self.counters))
+            return worker_pb2.GetWorkerStatusResponse(
+                channel_name=self.channel.name, subscribed=self._subscribed, ready=self.ready,
+                render_options=options_to_proto(self.options),
+                last_frame_report=report_to_proto(self.last_report), **asdict(self.counters))
 
     def run(self, stop: threading.Event) -> None:
         """Subscribe and render until the run ends (with once), the host refuses us, or stop is set."""
@@ -242,10 +265,13 @@ class ChannelWorker:
             skipped = c.frames_skipped
         t0 = time.perf_counter()
         try:
-            stats: dict[str, int] = {}
+            report = FrameReport()
             image = render_frame(self.database, self.channel, eyepoint_from_proto(frame.eyepoint),
-                                 out=self._rgb, stats=stats, **self.options)
+                                 self.options, report=report, out=self._rgb)
+            stats = report.counters
+            log.debug("frame %d: %s", number, report.format())
             with self._lock:
+                self.last_report = report
                 self.counters.translucent_dropped += stats.get("translucent_dropped", 0)
                 self.counters.terrain_voxels_last_frame = stats.get("terrain_voxels", 0)
                 self.counters.terrain_voxels_total += stats.get("terrain_voxels", 0)
@@ -301,18 +327,31 @@ class WorkerStatusServicer(worker_pb2_grpc.ChannelWorkerServiceServicer):
 
 
 def serve_worker(worker: ChannelWorker, address: str, stop: threading.Event) -> None:
-    """Serve the worker's health and status on address while it renders; blocks until it is done.
+    """Serve the worker's health and status on address, warm up, then render; blocks until it
+    is done.
+
+    Health is NOT_SERVING while the kernels compile (minutes on a cold cache, a second or two
+    from the cache) and SERVING once a warm-up frame has rendered, so the host, which waits for
+    every channel that answers, knows a compiling worker from a dead one.
 
     Raises:
         OSError: address cannot be bound.
     """
     server = make_server(max_workers=4)
     worker_pb2_grpc.add_ChannelWorkerServiceServicer_to_server(WorkerStatusServicer(worker), server)
-    health = add_health(server, [SERVICE])
+    health = add_health(server, [SERVICE], serving=worker.ready)
     bind(server, address)
     server.start()
     log.info("worker %s: health and status on %s", worker.channel.name, address)
     try:
+        if not worker.ready:
+            t0 = time.perf_counter()
+            log.info("worker %s: compiling the render kernels (NOT_SERVING until done)",
+                     worker.channel.name)
+            worker.warm_up()
+            log.info("worker %s: kernels ready in %.1f s; SERVING", worker.channel.name,
+                     time.perf_counter() - t0)
+        set_serving(health, [SERVICE])
         worker.run(stop)
     finally:
         # NOT_SERVING first, so health checkers see the worker leave before it stops answering.

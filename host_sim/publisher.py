@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 from ig.v1 import frame_pb2
+
 from services.rig.frame import Eyepoint, check_eyepoint
 from services.rig.wire import eyepoint_to_proto
 
@@ -30,6 +31,11 @@ QUEUE_DEPTH = 8
 #: Longest a wait of the publisher goes without looking at the stop event, seconds: SIGTERM
 #: must not wait out a start or sync timeout.
 _STOP_POLL_S = 0.1
+
+#: How often the missing channels' workers are asked for their health before the first frame,
+#: and how often the wait is logged, seconds.
+_HEALTH_POLL_S = 0.5
+_START_LOG_S = 10.0
 
 
 class UnknownChannel(ValueError):
@@ -107,7 +113,12 @@ class FramePublisher:
         duration_s: simulated seconds to run.
         sync_timeout_s: longest wait for the acknowledgements of one frame, seconds.
         observers: observers (e.g. the compositor) to wait for before the first frame.
-        start_timeout_s: longest wait for all channels and observers to subscribe, seconds.
+        start_timeout_s: longest wait for all channels and observers to subscribe, seconds;
+            with alive, counted for each missing channel from the last time its worker
+            answered, so a worker still compiling its kernels is waited for as long as it
+            takes, and only a silent one is given up on.
+        alive: whether the worker of a channel answers its health service now (SERVING or
+            NOT_SERVING); None: the start timeout alone decides.
         clock: wall clock, UNIX seconds (time stamps in the frames).
         run_id: identity of the run; a random one by default.
     """
@@ -115,7 +126,8 @@ class FramePublisher:
     def __init__(self, *, source: Callable[[float], Eyepoint], channels: Sequence[str],
                  rate_hz: float = 60.0, duration_s: float = 20.0, sync_timeout_s: float = 10.0,
                  observers: int = 0, start_timeout_s: float = 120.0,
-                 clock: Callable[[], float] = time.time, run_id: str | None = None) -> None:
+                 clock: Callable[[], float] = time.time, run_id: str | None = None,
+                 alive: Callable[[str], bool] | None = None) -> None:
         # `not x > 0` rather than `x <= 0` so that NaN is refused too.
         if not (rate_hz > 0 and math.isfinite(rate_hz)):
             raise ValueError(f"rate_hz: {rate_hz} must be a finite number > 0")
@@ -135,6 +147,7 @@ class FramePublisher:
         self.observers = observers
         self.start_timeout_s = start_timeout_s
         self.clock = clock
+        self.alive = alive
         self.status = HostStatus(run_id=run_id or uuid.uuid4().hex[:12])
         self.status.ack_timeouts = {c: 0 for c in self.channels}
         self.status.ack_failures = {c: 0 for c in self.channels}
@@ -277,15 +290,36 @@ class FramePublisher:
         return {s.channel_name for s in self._subs if s.channel_name}
 
     def _wait_for_subscribers(self, stop: threading.Event) -> None:
-        def ready() -> bool:
-            observers = sum(1 for s in self._subs if not s.channel_name)
-            return set(self.channels) <= self._subscribed_channels() and observers >= self.observers
-        with self._lock:
-            if not self._wait(ready, self.start_timeout_s, stop) and not stop.is_set():
+        started = time.monotonic()
+        heard = {c: started for c in self.channels}
+        said = started
+        while not stop.is_set():
+            with self._lock:
                 missing = [c for c in self.channels if c not in self._subscribed_channels()]
                 observers = sum(1 for s in self._subs if not s.channel_name)
-                log.warning("starting after %.0f s without channels %s, with %d of %d observers",
-                            self.start_timeout_s, missing, observers, self.observers)
+            if not missing and observers >= self.observers:
+                return
+            # The health probes go over the network: never with the lock held, so that
+            # subscriptions are not kept waiting.
+            now = time.monotonic()
+            if self.alive is not None:
+                for c in missing:
+                    if self.alive(c):
+                        heard[c] = now
+            if missing:
+                gone = all(now - heard[c] > self.start_timeout_s for c in missing)
+            else:
+                gone = now - started > self.start_timeout_s
+            if gone:
+                log.warning("starting without channels %s (silent for %.0f s), with %d of %d observers",
+                            missing, self.start_timeout_s, observers, self.observers)
+                return
+            if now - said >= _START_LOG_S:
+                said = now
+                log.info("waiting for channels %s (their workers answer: still starting) and %d of %d "
+                         "observers", missing, observers, self.observers)
+            with self._lock:
+                self._lock.wait(_STOP_POLL_S if self.alive is None else _HEALTH_POLL_S)
 
     def _wait_for_acks(self, number: int, stop: threading.Event) -> None:
         # Only channels with an open subscription can acknowledge; waiting for a worker that is

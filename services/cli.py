@@ -33,7 +33,11 @@ COMMANDS = {
                    "Serve CompositorService: stitch the frames every channel delivered with the host's "
                    "eyepoint, count the rest by cause, write frames/ and report.json. Serves gRPC health; "
                    "SIGTERM finalises open frames, writes the report and stops."),
-    "terrain": ("channel_worker.terrain.cli", "build a voxel terrain database offline, or describe one",
+    "compile": ("channel_worker.cli_compile", "compile the render kernels once for every worker of this machine",
+                "Render one tiny frame of the scene with the workers' options, so that the kernels are compiled "
+                "into the cache every worker of this machine loads them from (channel_worker/pipeline/"
+                "kernel_cache.py); ig demo runs it before the rig starts."),
+    "terrain": ("channel_worker.cli_terrain", "build a voxel terrain database offline, or describe one",
                 "Build the voxel terrain database of the ground (levels averaged 2 x 2, pages of voxels, a "
                 "page table per level; docs/terrain-database.md) from an elevation source, or describe a "
                 "built one."),

@@ -20,11 +20,20 @@ from pathlib import Path
 from typing import IO
 
 import grpc
-
 from ig.v1 import compositor_pb2, compositor_pb2_grpc
-from services.rig.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, load_rig_or_report, non_negative,
-                                 pixels, positive)
+
+from services.rig.cli_common import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_OK,
+    error,
+    load_rig_or_report,
+    non_negative,
+    pixels,
+    positive,
+)
 from services.rig.grpc_util import RPC_DEADLINE_S, make_channel
+from services.rig.options import RenderOptions
 from services.rig.rigfile import Rig, rig_toml
 
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
@@ -169,22 +178,18 @@ def format_report(doc: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
-    from channel_worker.pipeline.resolve import check_filter
-    from channel_worker.pipeline.samples import sample_pattern
-
     rig = load_rig_or_report(args.rig, "demo")
     if rig is None:
         return EXIT_BAD_INPUT
     try:
-        sample_pattern(args.samples)
-        check_filter(args.filter)
+        RenderOptions(samples=args.samples, filter=args.filter)
     except ValueError as exc:
         error("demo", exc)
         return EXIT_BAD_INPUT
     if args.scene and not Path(args.scene).is_file():
         error("demo", f"--scene: {args.scene!r} is not a file")
         return EXIT_BAD_INPUT
-    from channel_worker.pipeline.scene import SceneError, demo_scene_path, load_scene
+    from channel_worker.pipeline.scene.load import SceneError, demo_scene_path, load_scene
 
     scene_path = args.scene or str(demo_scene_path())
     if not args.scene:
@@ -229,16 +234,20 @@ def run(args: argparse.Namespace) -> int:
     started = time.monotonic()
     failure = None
     try:
-        compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
-                                                "--exr-every", str(args.exr_every), "--once"])
-        # One numba thread per worker: the workers already run in parallel with each other.
-        for ch in rig.channels:
-            procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name,
-                                              "--samples", str(args.samples), "--filter", args.filter, "--once", *scene],
-                        env={"NUMBA_NUM_THREADS": "1"})
-        procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(args.rate),
-                             "--duration", str(args.duration)])
-        failure = _watch(procs, compositor, rig.compositor_address, expected, stop)
+        # The kernels compile once, here, into the cache every worker then loads from: three
+        # workers compiling at once on a small machine would take minutes while the host waits.
+        t0 = time.monotonic()
+        print("ig demo: compiling the render kernels once for every worker (minutes on the first "
+              "run of these sources, seconds once cached) ...", end="", flush=True)
+        compiler = procs.start("compile", ["compile", "--rig", str(rig_path), "--samples", str(args.samples),
+                                           "--filter", args.filter, *scene])
+        while compiler.poll() is None and not stop["why"]:
+            time.sleep(0.2)
+        print(f" {time.monotonic() - t0:.0f} s", flush=True)
+        if compiler.returncode not in (None, 0):
+            failure = ("compile", compiler.returncode)
+        elif not stop["why"]:
+            failure = _run_rig(procs, rig, rig_path, out, args, scene, expected, stop)
         if stop["why"]:
             print(f"\nig demo: {stop['why']}; stopping every process", file=sys.stderr)
             procs.stop_all()
@@ -264,6 +273,22 @@ def run(args: argparse.Namespace) -> int:
     print(f"frames: {frames_dir}/frame_NNNNNN.png\nreport: {report_path}")
     ok = doc["frames_complete"] > 0 and not any(doc["frames_incomplete"].values())
     return EXIT_OK if ok else EXIT_FAILED
+
+
+def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argparse.Namespace,
+             scene: list[str], expected: int, stop: dict[str, str | None]) -> tuple[str, int] | None:
+    """Start the compositor, a worker per channel and the host; watch until the run is over."""
+    compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
+                                            "--exr-every", str(args.exr_every), "--once"])
+    # One numba thread per worker: the workers already run in parallel with each other.
+    for ch in rig.channels:
+        procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name,
+                                          "--samples", str(args.samples), "--filter", args.filter, "--once",
+                                          *scene],
+                    env={"NUMBA_NUM_THREADS": "1"})
+    procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(args.rate),
+                         "--duration", str(args.duration)])
+    return _watch(procs, compositor, rig.compositor_address, expected, stop)
 
 
 def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expected: int,

@@ -56,7 +56,7 @@ from channel_worker.data.build_airfield import (
     hill,
 )
 from channel_worker.data.modelling import Face, Part, box, make_part, model_doc
-from channel_worker.pipeline.types import ChannelSpec, Eyepoint
+from services.rig.frame import ChannelSpec, Eyepoint
 
 RUNWAY_LENGTH_M = 3000.0
 RUNWAY_WIDTH_M = 45.0

@@ -42,13 +42,14 @@ import numpy as np
 # Runnable from a plain checkout too.
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from channel_worker.pipeline.scene import parse_scene  # noqa: E402
-from channel_worker.pipeline.terrain import surface_height  # noqa: E402
-from channel_worker.pipeline.types import Database, Eyepoint  # noqa: E402
-from channel_worker.terrain.build import build_terrain  # noqa: E402
-from channel_worker.terrain.bundled import cache_dir, recipe_key  # noqa: E402
-from channel_worker.terrain.database import TerrainDatabase  # noqa: E402
-from channel_worker.terrain.store import build_cached, load_terrain  # noqa: E402
+from channel_worker.pipeline.background.terrain import surface_height  # noqa: E402
+from channel_worker.pipeline.scene.database import Database  # noqa: E402
+from channel_worker.pipeline.scene.load import parse_scene  # noqa: E402
+from channel_worker.pipeline.scene.terrain.build import build_terrain  # noqa: E402
+from channel_worker.pipeline.scene.terrain.bundled import cache_dir, recipe_key  # noqa: E402
+from channel_worker.pipeline.scene.terrain.database import TerrainDatabase  # noqa: E402
+from channel_worker.pipeline.scene.terrain.store import build_cached, load_terrain  # noqa: E402
+from services.rig.frame import Eyepoint  # noqa: E402
 
 FRACTAL_RECIPE: dict[str, Any] = {
     "generator": "bench/scenes/terrain.py ridged fBm/1",

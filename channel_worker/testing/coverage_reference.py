@@ -25,8 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from channel_worker.pipeline.horizon import earth_dz_screen
-from channel_worker.pipeline.types import SUBPIXEL, Database, ScreenPolygons, View
+from channel_worker.pipeline.contract import SUBPIXEL, ScreenPolygons, View
+from channel_worker.pipeline.geometry.view import earth_dz_screen
+from channel_worker.pipeline.scene.database import Database
 
 #: A piece of a pixel smaller than this (pixels^2) counts as absent: shapely's overlay of
 #: coordinates below 2^12 is exact to ~1e-12, so anything smaller is rounding, not geometry.

@@ -78,9 +78,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from channel_worker.pipeline.project import screen_mapping
-from channel_worker.pipeline.types import View
-from channel_worker.terrain.database import CORNERS, Pattern, TerrainDatabase
+from channel_worker.pipeline.contract import View
+from channel_worker.pipeline.geometry.view import screen_mapping
+from channel_worker.pipeline.scene.terrain.database import CORNERS, Pattern, TerrainDatabase
 
 #: sRGB uint8 -> linear, IEC 61966-2-1 (the 256-entry table the database docs name).
 _SRGB = np.arange(256, dtype=np.float64) / 255.0

@@ -1,7 +1,7 @@
 """Attitudes as quaternions: conversion, interpolation, and the estimate for logs without them.
 
 Attitudes follow docs/conventions.md: body -> world = Rz(-heading) Rx(pitch) Ry(roll) with the
-body frame x right, y forward, z up (channel_worker.pipeline.geometry.hpr_matrix). Quaternions
+body frame x right, y forward, z up (services.rig.frame.hpr_matrix). Quaternions
 are float64 [w, x, y, z] of that rotation. Interpolating them (slerp) turns on the shortest
 arc, so heading 359 -> 1 passes through 0 and never through 180, and pitch +-90 is no
 singularity.

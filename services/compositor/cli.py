@@ -6,8 +6,16 @@ import argparse
 import threading
 from pathlib import Path
 
-from services.rig.cli_common import (EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error,
-                                 load_rig_or_report, non_negative, positive)
+from services.rig.cli_common import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_OK,
+    add_rig_arguments,
+    error,
+    load_rig_or_report,
+    non_negative,
+    positive,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
-
 from ig.v1 import compositor_pb2, frame_pb2
 
 # Causes of an incomplete frame.

@@ -11,10 +11,17 @@ from typing import Sequence
 
 import grpc
 from google.protobuf import json_format
-
 from ig.v1 import compositor_pb2, compositor_pb2_grpc, host_pb2, host_pb2_grpc
-from services.rig.grpc_util import (RPC_DEADLINE_S, STREAM_DEADLINE_S, add_health, bind, make_channel, make_server,
-                                set_not_serving)
+
+from services.rig.grpc_util import (
+    RPC_DEADLINE_S,
+    STREAM_DEADLINE_S,
+    add_health,
+    bind,
+    make_channel,
+    make_server,
+    set_not_serving,
+)
 
 from .gather import FrameGatherer, InvalidSubmission, percentiles
 from .stitch import FrameWriter

@@ -4,6 +4,10 @@ channel shows (docs/conventions.md: world x east, y north, z up, metres; angles 
 The host computes an Eyepoint per frame, the workers render it through their ChannelSpec, and
 the compositor checks that every channel rendered the host's eyepoint; none of them owns these
 types, so they live here (wire.py converts them to and from ``ig.v1`` messages).
+
+Body frame of the aircraft: x right, y forward, z up. Heading turns clockwise seen from above,
+pitch raises the nose, roll lowers the right wing; they are applied in that order (intrinsic
+heading, pitch, roll), so body -> world is ``Rh @ Rp @ Rr`` (hpr_matrix).
 """
 
 from __future__ import annotations
@@ -68,6 +72,16 @@ class ChannelSpec:
             half_v = fov_v_deg / 2.0
         return ChannelSpec(name, int(width), int(height), -half_h, half_h, -half_v, half_v,
                            yaw_deg, pitch_deg, roll_deg)
+
+
+def hpr_matrix(heading_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """Body -> world rotation (3, 3) float64; columns are the body right, forward, up axes."""
+    h, p, r = (math.radians(a) for a in (heading_deg, pitch_deg, roll_deg))
+    ch, sh, cp, sp, cr, sr = math.cos(h), math.sin(h), math.cos(p), math.sin(p), math.cos(r), math.sin(r)
+    rh = np.array([[ch, sh, 0.0], [-sh, ch, 0.0], [0.0, 0.0, 1.0]])
+    rp = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
+    rr = np.array([[cr, 0.0, sr], [0.0, 1.0, 0.0], [-sr, 0.0, cr]])
+    return rh @ rp @ rr
 
 
 def check_eyepoint(eyepoint: Eyepoint) -> None:

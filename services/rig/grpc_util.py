@@ -46,19 +46,27 @@ def make_channel(address: str) -> grpc.Channel:
     return grpc.insecure_channel(address, options=_OPTIONS)
 
 
-def add_health(server: grpc.Server, services: Iterable[str]) -> health.HealthServicer:
-    """Register the standard gRPC health service, reporting SERVING for "" and services."""
+def add_health(server: grpc.Server, services: Iterable[str], *,
+               serving: bool = True) -> health.HealthServicer:
+    """Register the standard gRPC health service for "" and services, reporting SERVING, or
+    NOT_SERVING until set_serving (a worker still compiling its kernels)."""
     servicer = health.HealthServicer()
     health_pb2_grpc.add_HealthServicer_to_server(servicer, server)
-    for name in ("", *services):
-        servicer.set(name, health_pb2.HealthCheckResponse.SERVING)
+    set_serving(servicer, services, serving)
     return servicer
+
+
+def set_serving(servicer: health.HealthServicer, services: Iterable[str], serving: bool = True) -> None:
+    """Report SERVING (or NOT_SERVING) for "" and services."""
+    status = (health_pb2.HealthCheckResponse.SERVING if serving
+              else health_pb2.HealthCheckResponse.NOT_SERVING)
+    for name in ("", *services):
+        servicer.set(name, status)
 
 
 def set_not_serving(servicer: health.HealthServicer, services: Iterable[str]) -> None:
     """Tell health checkers the service is going away before it stops answering."""
-    for name in ("", *services):
-        servicer.set(name, health_pb2.HealthCheckResponse.NOT_SERVING)
+    set_serving(servicer, services, False)
 
 
 def bind(server: grpc.Server, address: str) -> int:

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from .frame import ChannelSpec
+from .options import RenderOptions
 
 
 class RigError(ValueError):
@@ -30,12 +31,14 @@ class RigChannel:
 
 @dataclass(frozen=True)
 class Rig:
-    """The whole rig; channels in display order, left to right."""
+    """The whole rig; channels in display order, left to right; render: the options every
+    worker renders with (the ``[render]`` table; a worker's command line may override them)."""
 
     host_address: str
     compositor_address: str
     channels: tuple[RigChannel, ...]
     source: str = ""
+    render: RenderOptions = RenderOptions()
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -96,8 +99,12 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         return RigError(f"{source}: {where}: {message}")
 
     for key in doc:
-        if key not in {"host", "compositor", "channels"}:
+        if key not in {"host", "compositor", "channels", "render"}:
             raise fail(key, "unknown key")
+    try:
+        render = RenderOptions.from_mapping(doc.get("render", {}), where="render")
+    except ValueError as exc:
+        raise RigError(f"{source}: {exc}") from None
     addresses = {}
     for section in ("host", "compositor"):
         table = doc.get(section)
@@ -158,7 +165,7 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         if address in seen:
             raise fail(where, f"{address!r} is already used by {seen[address]}")
         seen[address] = where
-    return Rig(addresses["host"], addresses["compositor"], tuple(out), source)
+    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render)
 
 
 def channel_spec(name: str, *, width: int, height: int, left_deg: float, right_deg: float, bottom_deg: float,
@@ -188,6 +195,9 @@ def _address(value: Any, where: str, fail) -> str:
 def rig_toml(rig: Rig) -> str:
     """A rig file for rig (the inverse of parse_rig)."""
     lines = [f'[host]\naddress = "{rig.host_address}"\n', f'[compositor]\naddress = "{rig.compositor_address}"\n']
+    changed = {k: v for k, v in rig.render.to_mapping().items() if getattr(RenderOptions(), k) != v}
+    if changed:
+        lines.append("[render]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in changed.items()))
     for ch in rig.channels:
         s = ch.spec
         lines.append(
@@ -197,6 +207,14 @@ def rig_toml(rig: Rig) -> str:
             f"bottom_deg = {s.bottom_deg!r}\ntop_deg = {s.top_deg!r}\n"
             f"width = {s.width}\nheight = {s.height}\n")
     return "\n".join(lines)
+
+
+def _toml_value(value: object) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    return repr(value)
 
 
 def port_of(address: str) -> int:

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from channel_worker.data import build_airfield, modelling
-from channel_worker.pipeline.geometry import hpr_matrix
 from channel_worker.pipeline.render import render_frame
-from channel_worker.pipeline.scene import bundled_scene_path, demo_scene_path, load_scene
-from channel_worker.pipeline.types import ChannelSpec, Eyepoint
+from channel_worker.pipeline.scene.load import bundled_scene_path, demo_scene_path, load_scene
 from host_sim.flight import bundled_flight
+from services.rig.frame import ChannelSpec, Eyepoint, hpr_matrix
+from services.rig.options import RenderOptions
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +132,7 @@ def test_loads_with_a_sensible_size(doc, database):
 
 def test_the_threshold_view_renders(database):
     img = render_frame(database, ChannelSpec.symmetric("centre", 128, 96, 60.0, 45.0),
-                       Eyepoint.of(0.0, -900.0, 3.0, 0.0, 0.0, 0.0), samples=1)
+                       Eyepoint.of(0.0, -900.0, 3.0, 0.0, 0.0, 0.0), RenderOptions(samples=1))
     assert np.isfinite(img.rgb).all()
     background = (np.all(np.isclose(img.rgb, database.sky_colour), axis=-1)
                   | np.all(np.isclose(img.rgb, database.earth_colour), axis=-1))

@@ -1,10 +1,11 @@
 """The worker renders the newest frame only and counts what it skipped; bad frames are refused."""
 
 import numpy as np
-
-from channel_worker.pipeline.types import ChannelSpec
-from channel_worker.worker import ChannelWorker, LatestFrame, encode_rgb_f16
 from ig.v1 import frame_pb2
+
+from channel_worker.worker import ChannelWorker, LatestFrame, encode_rgb_f16
+from services.rig.frame import ChannelSpec
+from services.rig.options import RenderOptions
 
 
 def frame(n, x=0.0):
@@ -37,7 +38,7 @@ class FakeStub:
 def worker(make_scene, box_model_factory):
     db = make_scene({"b": box_model_factory(1, 1, 1)}, [{"model": "b", "position": [0, 0, 0]}])
     w = ChannelWorker(db, ChannelSpec.symmetric("centre", 16, 12, 60.0), host_address="127.0.0.1:1",
-                      compositor_address="127.0.0.1:1", samples=1)
+                      compositor_address="127.0.0.1:1", options=RenderOptions(samples=1))
     stub = FakeStub()
     w.host_stub = w.compositor_stub = stub
     return w, stub
@@ -72,8 +73,9 @@ def test_pixels_are_little_endian_half_rows_top_first():
 
 
 def test_status_rpc_reports_the_counters(make_scene, box_model_factory):
-    from channel_worker.worker import SERVICE, WorkerStatusServicer
     from ig.v1 import worker_pb2, worker_pb2_grpc
+
+    from channel_worker.worker import SERVICE, WorkerStatusServicer
     from services.rig.grpc_util import add_health, check_health, make_channel, make_server
 
     w, _ = worker(make_scene, box_model_factory)
@@ -101,10 +103,11 @@ def test_status_rpc_reports_the_counters(make_scene, box_model_factory):
 def test_a_refused_subscription_ends_the_worker_with_the_reason(make_scene, box_model_factory):
     import threading
 
-    from services.rig.frame import Eyepoint
+    from ig.v1 import host_pb2_grpc
+
     from host_sim.publisher import FramePublisher
     from host_sim.server import HostServicer
-    from ig.v1 import host_pb2_grpc
+    from services.rig.frame import Eyepoint
     from services.rig.grpc_util import make_server
 
     pub = FramePublisher(source=lambda t: Eyepoint.of(0, 0, 10, 0, 0, 0), channels=["left"], duration_s=0.0)
@@ -116,7 +119,7 @@ def test_a_refused_subscription_ends_the_worker_with_the_reason(make_scene, box_
     try:
         db = make_scene({"b": box_model_factory(1, 1, 1)}, [{"model": "b", "position": [0, 0, 0]}])
         w = ChannelWorker(db, ChannelSpec.symmetric("centre", 16, 12, 60.0), host_address=f"127.0.0.1:{port}",
-                          compositor_address=f"127.0.0.1:{port}", samples=1)
+                          compositor_address=f"127.0.0.1:{port}", options=RenderOptions(samples=1))
         w.run(threading.Event())  # returns: the host does not know "centre"
         assert "channel_name: 'centre' is not a channel of the rig (left)" in w.refused
         assert w.counters.frames_handled == 0
@@ -136,7 +139,7 @@ def test_terrain_voxels_are_reported_per_frame_and_in_total(make_scene, box_mode
     db = make_scene({"b": box_model_factory(1, 1, 1)}, [{"model": "b", "position": [0, 0, 0]}])
     db = dataclasses.replace(db, terrain=single_level_database(heights, colours, 50.0, (-200.0, -950.0, 0.0)))
     w = ChannelWorker(db, ChannelSpec.symmetric("centre", 16, 12, 60.0), host_address="127.0.0.1:1",
-                      compositor_address="127.0.0.1:1", samples=1)
+                      compositor_address="127.0.0.1:1", options=RenderOptions(samples=1))
     w.host_stub = w.compositor_stub = FakeStub()
     w._handle(frame(0))
     first = w.counters.terrain_voxels_last_frame

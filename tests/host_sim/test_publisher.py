@@ -5,8 +5,8 @@ import time
 
 import pytest
 
-from services.rig.frame import Eyepoint
 from host_sim.publisher import ChannelTaken, FramePublisher, UnknownChannel
+from services.rig.frame import Eyepoint
 
 
 def source(t):

@@ -18,6 +18,7 @@ import pytest
 
 from services.demo import local_rig
 from services.rig.image_io import read_image
+from services.rig.options import RenderOptions
 from services.rig.rigfile import default_rig_path, load_rig, rig_toml
 
 from .conftest import start, wait_all
@@ -116,7 +117,7 @@ def test_every_stitched_frame_has_the_replayed_eyepoint(replay_run):
 
 def test_the_channels_are_renders_of_the_replayed_eyepoint(replay_run):
     from channel_worker.pipeline.render import render_frame
-    from channel_worker.pipeline.scene import bundled_scene_path, load_scene
+    from channel_worker.pipeline.scene.load import bundled_scene_path, load_scene
 
     database = load_scene(bundled_scene_path())
     replay = expected_replay(replay_run["log"])
@@ -124,6 +125,6 @@ def test_the_channels_are_renders_of_the_replayed_eyepoint(replay_run):
     pixels, _ = read_image(replay_run["out"] / "frames" / f"frame_{n:06d}.exr")
     eyepoint = replay.eyepoint_at(n / RATE)
     for i, ch in enumerate(replay_run["rig"].channels):
-        expected = render_frame(database, ch.spec, eyepoint, samples=1).rgb.astype(np.float16)
+        expected = render_frame(database, ch.spec, eyepoint, RenderOptions(samples=1)).rgb.astype(np.float16)
         np.testing.assert_allclose(pixels[:, i * W:(i + 1) * W], expected.astype(np.float32), rtol=1e-3, atol=1e-3,
                                    err_msg=f"frame {n} channel {ch.name}")

@@ -30,6 +30,7 @@ from ig.v1 import (
 from services.demo import local_rig
 from services.rig.grpc_util import check_health, make_channel
 from services.rig.image_io import read_image
+from services.rig.options import RenderOptions
 from services.rig.rigfile import default_rig_path, load_rig, rig_toml
 
 from .conftest import ROOT, start, wait_all
@@ -42,16 +43,21 @@ EXPECTED = int(round(RATE * DURATION)) + 1
 
 
 def wait_serving(address, proc, timeout_s=180.0):
-    """The health status of a process, once it answers; EXITED if it died first."""
+    """The health status of a process once it is SERVING (a worker answers NOT_SERVING while its
+    kernels compile); its last status after timeout_s, or EXITED if it died first."""
     deadline = time.monotonic() + timeout_s
+    status = "UNREACHABLE"
     while time.monotonic() < deadline:
         if proc.poll() is not None:
             return f"EXITED {proc.returncode}"
         try:
-            return check_health(address, timeout_s=1.0)
+            status = check_health(address, timeout_s=1.0)
+            if status == "SERVING":
+                return status
         except grpc.RpcError:
-            time.sleep(0.1)
-    return "UNREACHABLE"
+            pass
+        time.sleep(0.1)
+    return status
 
 
 @pytest.fixture(scope="module")
@@ -176,7 +182,7 @@ def test_each_third_of_a_stitched_frame_is_its_channel_at_the_published_eyepoint
     # flight at frame_number / rate: no eyepoint is refused on this flight), and compare with
     # the stitched EXR: the right channel, in the right place, from the same frame.
     from channel_worker.pipeline.render import render_frame
-    from channel_worker.pipeline.scene import bundled_scene_path, load_scene
+    from channel_worker.pipeline.scene.load import bundled_scene_path, load_scene
     from host_sim.flight import bundled_flight
 
     database = load_scene(bundled_scene_path())
@@ -188,7 +194,7 @@ def test_each_third_of_a_stitched_frame_is_its_channel_at_the_published_eyepoint
         assert (x, y, z, h, p, r) == (*eyepoint.position, eyepoint.heading_deg, eyepoint.pitch_deg,
                                       eyepoint.roll_deg)  # bitwise: the host's eyepoint
         for i, ch in enumerate(rig_run["rig"].channels):
-            expected = render_frame(database, ch.spec, eyepoint, samples=4).rgb.astype(np.float16)
+            expected = render_frame(database, ch.spec, eyepoint, RenderOptions(samples=4)).rgb.astype(np.float16)
             np.testing.assert_allclose(pixels[:, i * W:(i + 1) * W], expected.astype(np.float32),
                                        rtol=1e-3, atol=1e-3, err_msg=f"frame {n} channel {ch.name}")
 

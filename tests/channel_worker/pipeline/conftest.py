@@ -5,8 +5,19 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from channel_worker.pipeline.scene import parse_scene
-from channel_worker.pipeline.types import ScreenPolygons
+from channel_worker.pipeline.binning.binning import bin_features
+from channel_worker.pipeline.binning.edges import setup_edges
+from channel_worker.pipeline.contract import (
+    Background,
+    SampleBuffer,
+    ScreenPolygons,
+    View,
+    no_background,
+)
+from channel_worker.pipeline.geometry.view import frame_constants
+from channel_worker.pipeline.scene.load import parse_scene
+from channel_worker.pipeline.visibility.visibility import sample_store
+from services.rig.options import RenderOptions
 
 
 def box_model(w: float, d: float, h: float, colour: str = "#a0a0a0") -> dict:
@@ -67,3 +78,35 @@ def screen_polygons(polys: list, planes: list | None = None, opacity: list | Non
         opacity=np.array(opacity if opacity else [1.0] * n, np.float32),
         feature_id=np.arange(n, dtype=np.int32),
         layer=np.array(layer if layer else [0] * n, np.int16))
+
+
+class Stored:
+    """A stage's sample store, with the counters it reported as .stats."""
+
+    def __init__(self, buffer: SampleBuffer, stats: dict) -> None:
+        self.buffer, self.stats = buffer, stats
+
+    def __getattr__(self, name: str):
+        return getattr(self.buffer, name)
+
+
+#: The backdrop of store(): only the horizon matters to the store (colours are resolve's).
+_BACKDROP = parse_scene(scene_doc({}, []), source="<store>")
+
+
+def store(screen: ScreenPolygons, view: View, samples: str | int | np.ndarray, *,
+          max_translucent: int = 4, subarea: int = 16, with_range: bool = True,
+          background: Background | None = None) -> Stored:
+    """The visibility stage's sample store of screen polygons seen in view (edges and bins
+    built here), and its counters. samples: a pattern, or (S, 2) sample positions of any kind
+    (pixels from the pixel's top-left, on the 1/SUBPIXEL grid)."""
+    raw = isinstance(samples, np.ndarray)
+    options = RenderOptions(samples="rgss4" if raw else samples, max_translucent=max_translucent,
+                            subarea=subarea, with_range=with_range)
+    offsets = samples if raw else options.sample_offsets()
+    frame = frame_constants(view, _BACKDROP, offsets)
+    edges = setup_edges(screen, view.width, view.height)
+    bins = bin_features(edges, screen.start, view.width, view.height, subarea)
+    counters: dict[str, int] = {}
+    buf = sample_store(screen, edges, bins, frame, background or no_background(), options, counters)
+    return Stored(buf, counters)

@@ -1,7 +1,7 @@
 """Small terrain databases, scenes and comparisons shared by the terrain tests.
 
-Imported by test_terrain.py, test_terrain_merge.py and test_scene_terrain.py
-(``from .terrain_fixtures import ...``; pytest runs with --import-mode=importlib).
+Imported by the background, fog and scene tests (``from ..terrain_fixtures import ...``;
+pytest runs with --import-mode=importlib).
 Everything here is deterministic and small so the tests stay fast; databases are cached per
 process (functools.cache), they are frozen dataclasses and never modified.
 """
@@ -14,16 +14,18 @@ import math
 
 import numpy as np
 
-from channel_worker.pipeline.samples import sample_pattern
-from channel_worker.pipeline.scene import parse_scene
-from services.rig.colour import srgb_to_linear
-from channel_worker.pipeline.terrain import render_terrain
-from channel_worker.pipeline.types import Database
-from channel_worker.terrain.build import build_terrain
+from channel_worker.pipeline.background.background import render_background
+from channel_worker.pipeline.contract import Background, View
+from channel_worker.pipeline.geometry.view import frame_constants
+from channel_worker.pipeline.scene.database import Database
+from channel_worker.pipeline.scene.load import parse_scene
+from channel_worker.pipeline.scene.terrain.build import build_terrain
 from channel_worker.testing.terrain_reference import reference_terrain, single_level_database
+from services.rig.colour import srgb_to_linear
+from services.rig.options import RenderOptions
 
 #: Four samples (rotated grid) and one at the pixel centre, pixels from the top-left corner.
-RGSS4 = sample_pattern("rgss4")
+RGSS4 = RenderOptions(samples="rgss4").sample_offsets()
 CENTRE = np.array([[0.5, 0.5]])
 
 #: Sky and earth share one grey in the accuracy tests, so a sample that misses the terrain has
@@ -35,6 +37,28 @@ GREY = "#808080"
 HILLS_N = 128
 HILLS_SPACING = 40.0
 HILLS_ORIGIN = (-0.5 * HILLS_N * HILLS_SPACING, -0.5 * HILLS_N * HILLS_SPACING, 0.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Stage:
+    """The background stage's output for one view, and the counters it reported (.stats);
+    Background's fields read through."""
+
+    background: Background
+    stats: dict
+
+    def __getattr__(self, name: str):
+        return getattr(self.background, name)
+
+
+def render_terrain(database: Database, view: View, offsets: np.ndarray, *,
+                   level_bias: int = 0) -> Stage:
+    """The background stage alone, with per-sample depth everywhere (no sub-area mask)."""
+    counters: dict[str, int] = {}
+    frame = frame_constants(view, database, offsets)
+    bg = render_background(database, view, frame, RenderOptions(terrain_bias=level_bias), None,
+                           counters)
+    return Stage(bg, counters)
 
 
 def scene(*, terrain=None, haze: dict | None = None, sky: str = GREY, earth: str = GREY,
@@ -158,7 +182,7 @@ def compare(database: Database, view, *, level_bias: int = 0) -> Comparison:
 
 def surface_z(terrain, x: float, y: float) -> float:
     """World z of a single-level database's bilinear surface at world (x, y)."""
-    from channel_worker.pipeline.terrain import surface_height
+    from channel_worker.pipeline.background.terrain import surface_height
 
     z = surface_height(terrain, x - terrain.origin[0], y - terrain.origin[1])
     assert z is not None, (x, y)
@@ -185,7 +209,7 @@ def level_coloured_db(n: int, spacing: float, *, page_size: int = 64, height: fl
     one page), so databases tens of kilometres wide cost a few pages. missing(level, px, py)
     -> True leaves that page out (table entry -1; never for the coarsest level).
     """
-    from channel_worker.terrain.database import TerrainDatabase, page_layout
+    from channel_worker.pipeline.scene.terrain.database import TerrainDatabase, page_layout
 
     pages_x, pages_y, table_offset = page_layout(n, n, page_size)
     levels = len(pages_x)
@@ -211,7 +235,7 @@ def level_coloured_db(n: int, spacing: float, *, page_size: int = 64, height: fl
 def level_of(red_linear: np.ndarray) -> np.ndarray:
     """Fractional level from a level_coloured_db pixel's linear red (piecewise linear between
     the levels' colours: a pixel straddling levels L and L + 1 gives L + its share of L + 1)."""
-    from channel_worker.pipeline.terrain import _SRGB_LUT
+    from channel_worker.pipeline.background.terrain import _SRGB_LUT
 
     reds = _SRGB_LUT[np.array(LEVEL_RED)].astype(np.float64)
     return np.interp(red_linear, reds, np.arange(len(LEVEL_RED), dtype=np.float64))
@@ -240,7 +264,7 @@ def coarse_levels(terrain, first: int):
 
 def hit_points(view, range_m: np.ndarray) -> np.ndarray:
     """(H, W, 3) world points the pixel centres' rays reach at range_m (nan where infinite)."""
-    from channel_worker.pipeline.project import screen_mapping
+    from channel_worker.pipeline.geometry.view import screen_mapping
 
     sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
     tx = (np.arange(view.width) + 0.5 - sx_off) / sx_scale

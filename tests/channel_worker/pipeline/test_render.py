@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from channel_worker.pipeline.render import render_frame
-from channel_worker.pipeline.types import ChannelSpec, Eyepoint, StageTimes
+from services.rig.frame import ChannelSpec, Eyepoint
+from services.rig.options import RenderOptions
+from services.rig.report import FrameReport
 
 CH = ChannelSpec.symmetric("c", 64, 48, 60.0)
 
@@ -19,7 +21,7 @@ def scene(make_scene, box_model_factory, origin=(0.0, 0.0)):
 
 def test_box_in_front_has_the_right_range(make_scene, box_model_factory):
     db = scene(make_scene, box_model_factory)
-    img = render_frame(db, CH, Eyepoint.of(0, 0, 5, 0, 0, 0), samples=1)
+    img = render_frame(db, CH, Eyepoint.of(0, 0, 5, 0, 0, 0), RenderOptions(samples=1))
     # the pixel at the centre of the raster looks straight at the box's south face (y = 95)
     assert img.range_m[24, 32] == pytest.approx(math.hypot(95.0, 0.5 * math.tan(math.radians(30)) * 95 / 32),
                                                 rel=0.01)
@@ -33,28 +35,28 @@ def test_box_in_front_has_the_right_range(make_scene, box_model_factory):
 @pytest.mark.parametrize("hpr", [(0, 90, 0), (0, -90, 0), (359.5, 0, 180), (123, 89.999, 77), (0, -90, 180)])
 def test_extreme_attitudes_have_no_nan(make_scene, box_model_factory, hpr):
     db = scene(make_scene, box_model_factory)
-    img = render_frame(db, CH, Eyepoint.of(0, 90, 5, *hpr), samples=4)
+    img = render_frame(db, CH, Eyepoint.of(0, 90, 5, *hpr), RenderOptions(samples=4))
     assert np.isfinite(img.rgb).all()
     assert not np.isnan(img.range_m).any()
 
 
 def test_looking_straight_down_sees_only_earth_at_the_height(make_scene, box_model_factory):
     db = scene(make_scene, box_model_factory)
-    img = render_frame(db, CH, Eyepoint.of(0, -500, 50, 0, -90, 0), samples=1)
+    img = render_frame(db, CH, Eyepoint.of(0, -500, 50, 0, -90, 0), RenderOptions(samples=1))
     np.testing.assert_allclose(img.rgb, np.broadcast_to(db.earth_colour, img.rgb.shape), rtol=1e-6)
     assert img.range_m.min() >= 50.0 - 1e-3
 
 
 def test_1000_km_from_origin_matches_the_origin(make_scene, box_model_factory):
-    near = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 10, 2, 3), samples=4)
+    near = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 10, 2, 3), RenderOptions(samples=4))
     far_db = scene(make_scene, box_model_factory, origin=(1.0e6, -1.0e6))
-    far = render_frame(far_db, CH, Eyepoint.of(1.0e6, -1.0e6, 5, 10, 2, 3), samples=4)
+    far = render_frame(far_db, CH, Eyepoint.of(1.0e6, -1.0e6, 5, 10, 2, 3), RenderOptions(samples=4))
     np.testing.assert_allclose(far.rgb, near.rgb, atol=1e-6)
     np.testing.assert_allclose(far.range_m, near.range_m, rtol=1e-6)
 
 
 def test_eye_below_earth_is_clamped_not_nan(make_scene, box_model_factory):
-    img = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, -3, 0, 0, 0), samples=1)
+    img = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, -3, 0, 0, 0), RenderOptions(samples=1))
     assert np.isfinite(img.rgb).all()
     assert not np.isnan(img.range_m).any()
 
@@ -64,7 +66,7 @@ def test_translucent_face_blends_over_what_is_behind(make_scene, box_model_facto
              "faces": [{"indices": [0, 1, 2, 3], "colour": "#ffffff", "opacity": 0.5}]}
     db = make_scene({"b": box_model_factory(10, 10, 10, "#ff0000"), "g": glass},
                     [{"model": "b", "position": [0, 100, 0]}, {"model": "g", "position": [0, 50, 0]}])
-    img = render_frame(db, CH, Eyepoint.of(0, 0, 5, 0, 0, 0), samples=1)
+    img = render_frame(db, CH, Eyepoint.of(0, 0, 5, 0, 0, 0), RenderOptions(samples=1))
     px = img.rgb[24, 32]
     np.testing.assert_allclose(px, 0.5 * np.array([1, 1, 1]) + 0.5 * np.array([1, 0, 0]), atol=1e-6)
     assert img.range_m[24, 32] > 90  # range stays the opaque feature's
@@ -75,12 +77,12 @@ def test_stage_times_are_reported_in_order(make_scene, box_model_factory):
     eye = Eyepoint.of(0, 0, 5, 0, 0, 0)
     common = ["view", "cull", "transform", "backface", "clip", "project", "edges", "binning", "visibility"]
     # Box filter: pixels come straight out of each sub-area (no separate resolve pass).
-    times = StageTimes()
-    render_frame(db, CH, eye, times=times)
-    assert list(times.seconds) == common
-    times = StageTimes()
-    render_frame(db, CH, eye, filter="tent", times=times)
-    assert list(times.seconds) == common + ["resolve"]
+    report = FrameReport()
+    render_frame(db, CH, eye, report=report)
+    assert list(report.stage_seconds) == common
+    report = FrameReport()
+    render_frame(db, CH, eye, RenderOptions(filter="tent"), report=report)
+    assert list(report.stage_seconds) == common + ["resolve"]
 
 
 @pytest.mark.parametrize("samples", ["centre", "rgss4", "d3d16"])
@@ -88,20 +90,19 @@ def test_stage_times_are_reported_in_order(make_scene, box_model_factory):
 def test_fused_box_path_equals_sample_store_and_resolve(samples, with_range):
     """The default fast path (box filter inside each sub-area) and the sample store + resolve
     stage give the same image, on the bundled airfield with its translucent tower glass."""
-    from channel_worker.pipeline.scene import bundled_scene_path, load_scene
+    from channel_worker.pipeline.scene.load import bundled_scene_path, load_scene
     db = load_scene(bundled_scene_path())
     ch = ChannelSpec.symmetric("c", 160, 96, 60.0)
     # The control tower (its glass cab at 17.6-20.6 m) 60 m ahead, hangars and sky behind.
     eye = Eyepoint.of(-140.0, -660.0, 19.0, 0.0, 2.0, 5.0)
-    fused_stats: dict = {}
-    fused = render_frame(db, ch, eye, samples=samples, with_range=with_range, max_translucent=1,
-                         stats=fused_stats)
+    options = RenderOptions(samples=samples, with_range=with_range, max_translucent=1)
+    fused_report = FrameReport()
+    fused = render_frame(db, ch, eye, options, report=fused_report)
     trace: dict = {}
-    stored_stats: dict = {}
-    stored = render_frame(db, ch, eye, samples=samples, with_range=with_range, max_translucent=1,
-                          trace=trace, stats=stored_stats)
+    stored_report = FrameReport()
+    stored = render_frame(db, ch, eye, options, trace=trace, report=stored_report)
     assert (trace["buffer"].translucent_count > 0).any()
-    assert fused_stats == stored_stats
+    assert fused_report.counters == stored_report.counters
     np.testing.assert_allclose(fused.rgb, stored.rgb, rtol=0, atol=2e-6)
     if with_range:
         np.testing.assert_allclose(fused.range_m, stored.range_m, rtol=1e-6)
@@ -111,9 +112,9 @@ def test_fused_box_path_equals_sample_store_and_resolve(samples, with_range):
 
 def test_unknown_sample_pattern_is_named(make_scene, box_model_factory):
     with pytest.raises(ValueError, match="samples: unknown pattern 'foo'"):
-        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), samples="foo")
+        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), RenderOptions(samples="foo"))
     with pytest.raises(ValueError, match="samples: 3 has no pattern"):
-        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), samples=3)
+        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), RenderOptions(samples=3))
 
 
 def test_nan_eyepoint_is_refused_naming_the_field(make_scene, box_model_factory):
@@ -127,7 +128,7 @@ def test_colours_can_be_written_into_the_callers_array(make_scene, box_model_fac
     expect = render_frame(db, CH, eye)
     out = np.full((CH.height, CH.width, 3), np.nan, np.float32)
     for filter in ("box", "tent"):
-        got = render_frame(db, CH, eye, filter=filter, out=out)
+        got = render_frame(db, CH, eye, RenderOptions(filter=filter), out=out)
         assert got.rgb is out and np.isfinite(out).all()
     np.testing.assert_array_equal(render_frame(db, CH, eye, out=out).rgb, expect.rgb)
     with pytest.raises(ValueError, match=r"out: expected a C-contiguous float32 array of shape \(48, 64, 3\)"):
@@ -145,11 +146,13 @@ def test_a_full_translucent_store_drops_the_farthest_and_says_so(make_scene, box
                      {"model": "far", "position": [0, 0, 5]}])
     eye = Eyepoint.of(0, 0, 5, 0, 0, 0)
     for filter in ("box", "tent"):
-        stats: dict = {}
-        img = render_frame(db, CH, eye, samples=1, max_translucent=1, filter=filter, stats=stats)
-        assert stats["translucent_dropped"] == CH.width * CH.height
+        report = FrameReport()
+        img = render_frame(db, CH, eye, RenderOptions(samples=1, max_translucent=1, filter=filter),
+                           report=report)
+        assert report.counters["translucent_dropped"] == CH.width * CH.height
         np.testing.assert_allclose(img.rgb[24, 32], [0.5 + 0.5, 0.5, 0.5], atol=1e-6)
-        stats = {}
-        img = render_frame(db, CH, eye, samples=1, max_translucent=2, filter=filter, stats=stats)
-        assert stats["translucent_dropped"] == 0
+        report = FrameReport()
+        img = render_frame(db, CH, eye, RenderOptions(samples=1, max_translucent=2, filter=filter),
+                           report=report)
+        assert report.counters["translucent_dropped"] == 0
         np.testing.assert_allclose(img.rgb[24, 32], [0.5 + 0.25, 0.25, 0.25 + 0.25], atol=1e-6)

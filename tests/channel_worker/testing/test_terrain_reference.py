@@ -11,11 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from channel_worker.pipeline.geometry import make_view
-from channel_worker.pipeline.samples import sample_pattern
-from services.rig.colour import srgb_to_linear
-from channel_worker.pipeline.types import ChannelSpec, Eyepoint
-from channel_worker.terrain.database import Pattern, TerrainDatabase
+from channel_worker.pipeline.geometry.view import make_view
+from channel_worker.pipeline.scene.terrain.database import Pattern, TerrainDatabase
 from channel_worker.testing.terrain_reference import (
     SRGB_TO_LINEAR,
     first_root,
@@ -23,9 +20,12 @@ from channel_worker.testing.terrain_reference import (
     reference_terrain,
     single_level_database,
 )
+from services.rig.colour import srgb_to_linear
+from services.rig.frame import ChannelSpec, Eyepoint
+from services.rig.options import RenderOptions
 
 CHANNEL = ChannelSpec.symmetric("c", 40, 30, 60.0)
-RGSS4 = sample_pattern("rgss4")
+RGSS4 = RenderOptions(samples="rgss4").sample_offsets()
 RED, GREEN, BLUE = (255, 0, 0), (0, 255, 0), (0, 0, 255)
 
 
@@ -161,7 +161,7 @@ def test_tilted_plane_range_is_analytic(hpr):
 def test_roll_90_puts_the_ground_on_the_right():
     view = view_of((3200.0, 3200.0, 30.0), 0, 0, 90)  # right wing down: eye right = world down
     db = plane_db(0.0, 0.0, 0.0, spacing=100.0)  # 6.4 km: the shallowest rays hit at 2.1 km
-    ref = reference_terrain(db, view, sample_pattern("centre"))
+    ref = reference_terrain(db, view, RenderOptions(samples="centre").sample_offsets())
     assert ref.hit[:, view.width // 2:].all()
     assert not ref.hit[:, :view.width // 2].any()
 
@@ -169,7 +169,7 @@ def test_roll_90_puts_the_ground_on_the_right():
 def test_roll_180_is_the_image_turned_half_round():
     h, colours = hill_nodes()
     db = single_level_database(h, colours, 2.0, np.zeros(3))
-    centre = sample_pattern("centre")
+    centre = RenderOptions(samples="centre").sample_offsets()
     upright = reference_terrain(db, view_of((5.0, 8.0, 45.0), 40, -20, 0), centre)
     turned = reference_terrain(db, view_of((5.0, 8.0, 45.0), 40, -20, 180), centre)
     assert upright.hit.any() and not upright.hit.all()
@@ -399,12 +399,12 @@ def test_pattern_top_has_the_last_band_colour():
 def test_pattern_seen_through_a_view():
     db = pattern_db()
     view = view_of((6.0, 42.0, 25.0), 90, 0, 0)  # looking east at the box's west side
-    ref = reference_terrain(db, view, sample_pattern("centre"))
+    ref = reference_terrain(db, view, RenderOptions(samples="centre").sample_offsets())
     band_hits = np.zeros(3, int)
     for b, srgb in enumerate((RED, GREEN, BLUE)):
         band_hits[b] = np.all(np.isclose(ref.rgb[..., 0, :], lin(srgb), atol=1e-12), axis=-1).sum()
     assert np.all(band_hits > 0)  # every band is seen
-    d = sample_directions(view, sample_pattern("centre"))[..., 0, :]
+    d = sample_directions(view, RenderOptions(samples="centre").sample_offsets())[..., 0, :]
     on_side = np.any([np.all(np.isclose(ref.rgb[..., 0, :], lin(c), atol=1e-12), axis=-1)
                       for c in (RED, GREEN, BLUE)], axis=0)
     side_range = (40.0 - 6.0) / d[..., 0]

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-
 from ig.v1 import compositor_pb2, frame_pb2
+
 from services.compositor.gather import FrameGatherer, InvalidSubmission
 from services.compositor.stitch import stitch
 

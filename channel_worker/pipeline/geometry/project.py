@@ -1,0 +1,44 @@
+"""Perspective projection with the channel's off-axis frustum."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from channel_worker.pipeline.contract import SUBPIXEL, Polygons, ScreenPolygons, View
+
+from ._project_kernels import project_kernel
+from .view import screen_mapping
+
+
+def project(polys: Polygons, view: View) -> ScreenPolygons:
+    """Project clipped eye-space polygons to snapped screen positions with depth planes.
+
+    Depth is interpolated exactly: for a planar face n . p = d, along the ray through screen
+    point (sx, sy) 1/z = (n_x tx + n_y ty + n_z) / d, and the tangents tx, ty are affine in
+    (sx, sy), so 1/z = A sx + B sy + C. Guard: backface elimination keeps only faces with
+    d < 0 strictly, so the divisions by d are safe.
+    """
+    sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
+    n = polys.count
+    out_fixed = np.empty((polys.verts.shape[0], 2), np.int64)
+    out_start = np.empty(n + 1, np.int64)
+    out_src = np.empty(n, np.int64)
+    n_out, v_out = project_kernel(np.ascontiguousarray(polys.verts), polys.start, sx_scale, sx_off,
+                                  sy_scale, sy_off, float(SUBPIXEL), view.width * SUBPIXEL,
+                                  view.height * SUBPIXEL, out_fixed, out_start, out_src)
+    src = out_src[:n_out]
+    plane = polys.plane[src]
+    nx, ny, nz, d = plane[:, 0], plane[:, 1], plane[:, 2], plane[:, 3]
+    # tx = (sx - sx_off) / sx_scale, ty = (sy - sy_off) / sy_scale
+    a = nx / (sx_scale * d)
+    b = ny / (sy_scale * d)
+    c = (nz - nx * sx_off / sx_scale - ny * sy_off / sy_scale) / d
+    return ScreenPolygons(
+        fixed=out_fixed[:v_out],
+        start=out_start[:n_out + 1].copy(),
+        inv_z=np.column_stack([a, b, c]),
+        colour=polys.colour[src],
+        opacity=polys.opacity[src],
+        feature_id=polys.feature_id[src],
+        layer=polys.layer[src],
+    )

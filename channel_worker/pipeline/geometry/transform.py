@@ -1,0 +1,78 @@
+"""World -> eye transform of the drawn instances, in float64, and flat lighting."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from channel_worker.pipeline.contract import DrawList, Polygons, View
+from channel_worker.pipeline.scene.database import Database
+
+from ._transform_kernels import transform_kernel
+
+
+def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
+    """Transform every face of the drawn instances to eye coordinates and light it.
+
+    Positions stay float64 throughout: the instance position is made eye-relative first (a
+    difference of two large, nearly equal numbers that float64 holds exactly enough at 1000 km),
+    and only then are the small model offsets rotated and added. All instances are transformed
+    in one vectorised pass over a flat table of their face vertices.
+    """
+    n = draws.instance_index.shape[0]
+    if n == 0:
+        return empty_polygons(3)
+    table = database.faces
+    model = database.instance_model[draws.instance_index]
+    corners = table.corner_count[model]  # face-vertex slots per drawn instance
+    faces = table.face_count[model]
+    face_inst = np.repeat(np.arange(n), faces)
+    face_rows = index_ranges(table.face_base[model], faces)
+
+    to_eye_rot = np.ascontiguousarray(view.world_to_eye @ draws.rotation)  # (n, 3, 3) model -> eye
+    rel = (draws.position - view.eye) @ view.world_to_eye.T  # instance origins, eye frame
+    n_corners = int(corners.sum())
+    n_faces = int(faces.sum())
+    eye_verts = np.empty((n_corners, 3))
+    normal = np.empty((n_faces, 3))
+    sun_dot = np.empty(n_faces)
+    d = np.empty(n_faces)
+    # The plane offset comes from the face's plane point (its own first vertex, or that of the
+    # face it lies on), transformed exactly like the vertices, so coplanar faces of one
+    # instance get bit-identical planes and their depth ties are decided by layer alone.
+    transform_kernel(to_eye_rot, np.ascontiguousarray(draws.rotation), np.ascontiguousarray(rel),
+                     table.corner_base[model], corners, table.face_base[model], faces,
+                     table.corner_xyz, table.normal, table.plane_xyz, eye_verts, normal, sun_dot, d,
+                     np.asarray(database.sun, np.float64))
+    light = database.ambient + (1.0 - database.ambient) * np.clip(sun_dot, 0.0, 1.0)
+
+    sizes = table.face_size[face_rows]
+    start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    ids = database.instance_face_base[draws.instance_index][face_inst] + table.local_face[face_rows]
+    return Polygons(
+        verts=eye_verts,
+        start=start,
+        colour=(table.colour[face_rows] * light[:, None]).astype(np.float32),
+        opacity=table.opacity[face_rows],
+        feature_id=ids.astype(np.int32),
+        plane=np.column_stack([normal, d]),
+        layer=table.layer[face_rows],
+    )
+
+
+def index_ranges(starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Concatenation of arange(s, s + c) for each (s, c), without a Python loop."""
+    total = int(counts.sum())
+    base = np.repeat(starts - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+    return base + np.arange(total)
+
+
+def empty_polygons(dim: int) -> Polygons:
+    """A Polygons with no polygon, vertices of dimension dim."""
+    return Polygons(
+        verts=np.zeros((0, dim), np.float64),
+        start=np.zeros(1, np.int64),
+        colour=np.zeros((0, 3), np.float32),
+        opacity=np.zeros(0, np.float32),
+        feature_id=np.zeros(0, np.int32),
+        plane=np.zeros((0, 4), np.float64),
+    )

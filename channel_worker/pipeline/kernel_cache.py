@@ -1,0 +1,80 @@
+"""Where numba keeps the pipeline's compiled kernels, and why the place is named after their
+sources.
+
+numba's on-disk cache (``cache=True``) checks a compiled kernel against the time stamp of the
+kernel's own source file only. The pipeline's kernels inline helpers from other modules (the fog
+look-up, the haze, the shading of a sample), so an edit to a helper would leave stale machine
+code in every kernel that inlined it. The pipeline is therefore cached as a whole, in a
+directory named after a hash of every source file of the pipeline package and numba's version:
+an edit anywhere gives a new directory, whose kernels compile afresh, and nothing is deleted
+behind anyone's back. All processes of a machine that run the same sources share one
+directory, so the kernels compile once per machine: `ig compile` does it ahead of a run (`ig
+demo` runs it before it starts the workers), and `ig compile --prune` removes the directories of
+other sources.
+
+The directory is ``$IG_CACHE_DIR/numba/<key>`` (IG_CACHE_DIR defaults to ~/.cache/ig-rig, where
+the bundled terrain is cached too). It is chosen by setting NUMBA_CACHE_DIR when the pipeline
+package is imported, before any kernel is defined (numba reads it when a kernel is decorated).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import sys
+from importlib import metadata
+from pathlib import Path
+
+#: The package whose sources key the cache.
+_PIPELINE = Path(__file__).resolve().parent
+
+
+def cache_root() -> Path:
+    """$IG_CACHE_DIR/numba, IG_CACHE_DIR defaulting to ~/.cache/ig-rig."""
+    base = os.environ.get("IG_CACHE_DIR")
+    return (Path(base) if base else Path.home() / ".cache" / "ig-rig") / "numba"
+
+
+def sources_key() -> str:
+    """16 hex digits of a hash of every pipeline source file (path and bytes) and numba's and
+    Python's versions."""
+    digest = hashlib.sha256()
+    for path in sorted(_PIPELINE.rglob("*.py")):
+        digest.update(path.relative_to(_PIPELINE).as_posix().encode())
+        digest.update(path.read_bytes())
+    digest.update(metadata.version("numba").encode())
+    digest.update(sys.version.encode())
+    return digest.hexdigest()[:16]
+
+
+def kernel_cache_dir() -> Path:
+    """The cache directory of the pipeline as its sources are now."""
+    return cache_root() / sources_key()
+
+
+def use_kernel_cache() -> Path:
+    """Point numba's cache at kernel_cache_dir() for this process and its children.
+
+    Called once, by the pipeline package's __init__, before any kernel module is imported.
+    """
+    path = kernel_cache_dir()
+    os.environ["NUMBA_CACHE_DIR"] = str(path)
+    if "numba" in sys.modules:
+        # numba was imported already (by another package's kernel): its configuration is read
+        # again so that the pipeline's kernels, decorated from now on, see the directory.
+        from numba.core import config
+        config.reload_config()
+    return path
+
+
+def prune(keep: Path) -> list[Path]:
+    """Remove every cache directory but keep (those of other sources); returns the removed."""
+    root = keep.parent
+    removed = []
+    if root.is_dir():
+        for other in root.iterdir():
+            if other.is_dir() and other != keep:
+                shutil.rmtree(other, ignore_errors=True)
+                removed.append(other)
+    return removed

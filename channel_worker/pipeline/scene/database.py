@@ -1,0 +1,150 @@
+"""The scene database: the pipeline's input, loaded once (load.py) and read by every frame.
+
+Models are convex polygons in their own frame; instances place models in the world (float64
+metres, x east, y north, z up); the flat FaceTable lets every drawn instance be transformed in
+one pass. The atmosphere (haze, fog, clouds) and the voxel terrain hang off the Database as
+their own scene types (atmosphere.py, terrain/).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .atmosphere import Clouds, Fog, Haze
+from .terrain.database import TerrainDatabase
+
+
+@dataclass(frozen=True)
+class Model:
+    """One model of the database: convex polygons in model coordinates (metres).
+
+    Attributes:
+        name: key in the scene file.
+        vertices: (Nv, 3) float64.
+        face_start: (F + 1,) int64 offsets into face_index.
+        face_index: vertex indices of all faces, concatenated, counter-clockwise from the front.
+        colour: (F, 3) float32 linear RGB.
+        opacity: (F,) float32.
+        normal: (F, 3) float64 unit outward normals.
+        centre: (3,) float64 bounding-sphere centre; radius: its radius, metres.
+        layer: (F,) int16 declared layer (0 unless the face lies on another face).
+        plane_vertex: (F,) int64 vertex whose position fixes the face's plane offset: its own
+            first vertex, or the first vertex of the face it lies on, so that coplanar faces
+            share one plane bit for bit.
+    """
+
+    name: str
+    vertices: np.ndarray
+    face_start: np.ndarray
+    face_index: np.ndarray
+    colour: np.ndarray
+    opacity: np.ndarray
+    normal: np.ndarray
+    centre: np.ndarray
+    radius: float
+    layer: np.ndarray | None = None
+    plane_vertex: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.layer is None:
+            object.__setattr__(self, "layer", np.zeros(self.face_count, np.int16))
+        if self.plane_vertex is None:
+            object.__setattr__(self, "plane_vertex", self.face_index[self.face_start[:-1]].astype(np.int64))
+
+    @property
+    def face_count(self) -> int:
+        return int(self.face_start.shape[0] - 1)
+
+
+@dataclass(frozen=True)
+class FaceTable:
+    """Every model's faces flattened into one table, so all instances transform in one pass.
+
+    Per model m: corner_count[m] face-vertex slots starting at corner_base[m] in corner_xyz,
+    face_count[m] faces starting at face_base[m] in the per-face arrays.
+    """
+
+    corner_count: np.ndarray
+    face_count: np.ndarray
+    corner_base: np.ndarray
+    face_base: np.ndarray
+    corner_xyz: np.ndarray  # (C, 3) float64 model metres, each face's vertices in order
+    normal: np.ndarray  # (F, 3) float64
+    colour: np.ndarray  # (F, 3) float32 linear
+    opacity: np.ndarray  # (F,) float32
+    face_size: np.ndarray  # (F,) int64 vertices per face
+    local_face: np.ndarray  # (F,) int64 index of the face within its model
+    layer: np.ndarray  # (F,) int16
+    plane_xyz: np.ndarray  # (F, 3) float64 model metres, the point fixing each face's plane
+
+    @staticmethod
+    def of(models: "tuple[Model, ...]") -> "FaceTable":
+        corner_count = np.array([m.face_index.shape[0] for m in models], np.int64)
+        face_count = np.array([m.face_count for m in models], np.int64)
+        empty = not models
+        return FaceTable(
+            corner_count=corner_count,
+            face_count=face_count,
+            corner_base=np.concatenate([[0], np.cumsum(corner_count)[:-1]]).astype(np.int64),
+            face_base=np.concatenate([[0], np.cumsum(face_count)[:-1]]).astype(np.int64),
+            corner_xyz=np.zeros((0, 3)) if empty else np.concatenate([m.vertices[m.face_index] for m in models]),
+            normal=np.zeros((0, 3)) if empty else np.concatenate([m.normal for m in models]),
+            colour=np.zeros((0, 3), np.float32) if empty else np.concatenate([m.colour for m in models]),
+            opacity=np.zeros(0, np.float32) if empty else np.concatenate([m.opacity for m in models]).astype(np.float32),
+            face_size=np.zeros(0, np.int64) if empty else np.concatenate([np.diff(m.face_start) for m in models]).astype(np.int64),
+            local_face=np.zeros(0, np.int64) if empty else np.concatenate([np.arange(m.face_count) for m in models]).astype(np.int64),
+            layer=np.zeros(0, np.int16) if empty else np.concatenate([m.layer for m in models]).astype(np.int16),
+            plane_xyz=np.zeros((0, 3)) if empty else np.concatenate([m.vertices[m.plane_vertex] for m in models]),
+        )
+
+
+@dataclass(frozen=True)
+class Database:
+    """The loaded scene.
+
+    Attributes:
+        models: all models, referenced by index.
+        instance_model: (N,) int64 model index per instance.
+        instance_position: (N, 3) float64 world metres.
+        instance_rotation: (N, 3, 3) float64 model -> world.
+        instance_names: display names.
+        instance_face_base: (N,) int64; feature id of face k of instance i is base[i] + k.
+        sky_colour, earth_colour: (3,) float32 linear RGB.
+        earth_height: world z of the earth plane, metres.
+        sun: (3,) float64 unit vector towards the sun, world frame.
+        ambient: share of a face's colour lit regardless of the sun.
+        faces: all models' faces in one flat table (FaceTable.of(models)).
+        source: where the database was loaded from (for messages).
+        terrain: the voxel terrain, or None.
+        terrain_margin_m: a polygon within this height above or below the terrain surface is
+            drawn in front of it (a runway on its pad), metres.
+        haze, clouds, fog: the scene's atmosphere (atmosphere.py), each None when absent.
+    """
+
+    models: tuple[Model, ...]
+    instance_model: np.ndarray
+    instance_position: np.ndarray
+    instance_rotation: np.ndarray
+    instance_names: tuple[str, ...]
+    instance_face_base: np.ndarray
+    sky_colour: np.ndarray
+    earth_colour: np.ndarray
+    earth_height: float
+    sun: np.ndarray
+    ambient: float
+    faces: FaceTable
+    source: str = ""
+    terrain: TerrainDatabase | None = None
+    terrain_margin_m: float = 1.0
+    haze: Haze | None = None
+    clouds: Clouds | None = None
+    fog: Fog | None = None
+
+    @property
+    def feature_count(self) -> int:
+        if self.instance_model.shape[0] == 0:
+            return 0
+        last = int(self.instance_model[-1])
+        return int(self.instance_face_base[-1]) + self.models[last].face_count

@@ -1,0 +1,56 @@
+"""FrameReport: what one rendered frame cost, stage by stage, and what its stages counted.
+
+One object, the same wherever a frame is reported: `render_frame(..., report=FrameReport())`
+fills it; the worker logs it (format()) and reports its last one in its status
+(``ig.v1.FrameReport``, wire.py); `ig render --times` prints it; the benches store
+to_dict() in their JSON.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+
+@dataclass
+class FrameReport:
+    """Per-stage wall-clock seconds and counters of one frame.
+
+    Attributes:
+        stage_seconds: seconds spent in each pipeline stage, in the order the stages ran
+            (view, cull, transform, backface, clip, project, edges, binning, background,
+            visibility, resolve; docs/pipeline.md).
+        counters: what the stages counted ("translucent_dropped", "terrain_voxels",
+            "subarea_entries_full", ...; docs/pipeline.md lists them).
+    """
+
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+    counters: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def total_seconds(self) -> float:
+        """The sum of the stages' times."""
+        return float(sum(self.stage_seconds.values()))
+
+    def clear(self) -> None:
+        """Empty it for the next frame."""
+        self.stage_seconds.clear()
+        self.counters.clear()
+
+    def to_dict(self) -> dict[str, Any]:
+        """{"stages_ms": {stage: ms}, "total_ms": ms, "counters": {name: n}} (the bench JSON's form)."""
+        return {"stages_ms": {k: v * 1e3 for k, v in self.stage_seconds.items()},
+                "total_ms": self.total_seconds * 1e3, "counters": dict(self.counters)}
+
+    @classmethod
+    def from_dict(cls, doc: dict[str, Any]) -> FrameReport:
+        """The inverse of to_dict."""
+        return cls({k: float(v) * 1e-3 for k, v in doc.get("stages_ms", {}).items()},
+                   {k: int(v) for k, v in doc.get("counters", {}).items()})
+
+    def format(self) -> str:
+        """One line: every stage's milliseconds, the total, then the non-zero counters."""
+        stages = " ".join(f"{k} {v * 1e3:.2f}" for k, v in self.stage_seconds.items())
+        counters = " ".join(f"{k}={v}" for k, v in self.counters.items() if v)
+        text = f"ms: {stages} | total {self.total_seconds * 1e3:.2f}"
+        return f"{text} | {counters}" if counters else text
