@@ -4,12 +4,12 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test bench clean proto
+.PHONY: demo test check bench clean proto
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip >/dev/null
-	$(PY) -m pip install -e '.[test,devices,gis]'
+	$(PY) -m pip install -e '.[test,devices,gis,check]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -17,6 +17,12 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest
+
+# Lint (ruff), types (mypy) and the layer contracts of docs/architecture.md (import-linter).
+check: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
+	$(VENV)/bin/lint-imports
 
 # bench_terrain.py builds its 4096^2-voxel terrain on first use (cached, ~40 s, ~5 GB peak).
 # bench_visibility.py compares with Mesa's llvmpipe: moderngl comes with the [bench] extra, Mesa's

@@ -1,6 +1,6 @@
-"""Layered fog (seed 004, channel_worker/pipeline/fog.py): the per-frame table's cost and its
-error against the exact integral, for table spacings from 4 x to 1/16 of the sample spacing
-(bench/README.md "Fog").
+"""Layered fog (US 5,535,374, channel_worker/pipeline/fog/fog.py): the per-frame table's cost
+and its error against the exact integral, for table spacings from 4 x to 1/16 of the sample
+spacing (bench/README.md "Fog").
 
     python bench/bench_fog.py                # the full run (about a minute)
     python bench/bench_fog.py --repeats 15   # steadier medians on a busy machine
@@ -20,7 +20,10 @@ call (numba compiles on the first), ns per ray; (c) the transmission error |exp(
 10^6 random rays (directions uniform over the sphere, ranges log-uniform 10 m to 100 km) and
 over a grazing grid (elevations 0 to +-90 degrees, down to 0.001 degrees, ranges 10 m to 100
 km and the sky); colours are in [0, 1], so the largest colour error is the largest
-transmission error. The exact reference's time per ray is the comparison point.
+transmission error. The exact reference's time per ray is the comparison point, and so is
+US 5,535,374's own look-up (the stored average interpolated linearly, resample planes one
+sample spacing apart; the record's "patent_linear", "seed_linear" in records before it was
+renamed).
 
 Runs pinned to one CPU with numba on one thread. Writes bench/results/fog.json (the record)
 and bench/results/fog.png (error and cost against the table spacing; not checked in).
@@ -45,6 +48,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from common import bench_parser, finish, replot  # bench/ is on the path as a script
+
 from services.rig.options import RenderOptions
 
 SPACING_M = 20.0
@@ -65,7 +69,7 @@ ERROR_RAYS = 1_000_000
 GRID_RANGES = 200
 #: The reference runs on chunks of rays (its arrays are rays x planes).
 CHUNK = 50_000
-QUICK = {"repeats": 3, "lookup_rays": 100_000, "error_rays": 20_000, "grid_ranges": 40,
+QUICK: dict[str, Any] = {"repeats": 3, "lookup_rays": 100_000, "error_rays": 20_000, "grid_ranges": 40,
          "eyes": (EYES[0], EYES[2], EYES[4])}
 
 
@@ -110,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress()
     fog_source = Path(fog_module.__file__).read_bytes()
     record: dict[str, Any] = {
-        "benchmark": "layered fog (seed 004): per-frame table build, per-sample lookup and "
+        "benchmark": "layered fog (US 5,535,374): per-frame table build, per-sample lookup and "
                      "transmission error against the exact integral, per table spacing",
         "date": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "machine": machine(),
@@ -134,8 +138,9 @@ def main(argv: list[str] | None = None) -> int:
     grid_ranges = QUICK["grid_ranges"] if quick else GRID_RANGES
     record["rays"] = {
         "lookup": {"count": lookup_rays, "what": "cosines uniform in [-1, 1] (directions "
-                   "uniform over the sphere), ranges log-uniform 10 m .. 100 km; seed 1"},
-        "random": {"count": error_rays, "what": "as the lookup rays, seed 2"},
+                   "uniform over the sphere), ranges log-uniform 10 m .. 100 km; random "
+                   "seed 1"},
+        "random": {"count": error_rays, "what": "as the lookup rays, random seed 2"},
         "grazing": {"elevations_deg": [0.0] + [s * e for e in ELEVATIONS_DEG for s in (1, -1)],
                     "ranges": f"{grid_ranges} log-spaced 10 m .. 100 km, and the sky (inf)"},
     }
@@ -148,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
 
 #: The whole-frame comparison: the channel of bench_terrain.py (1280 x 1024, 60 degrees, 4
 #: samples), the bundled scenes with and without the demo scene's valley mist.
-FRAME = {"width": 1280, "height": 1024, "fov_h_deg": 60.0, "samples": "rgss4"}
+FRAME: dict[str, Any] = {"width": 1280, "height": 1024, "fov_h_deg": 60.0, "samples": "rgss4"}
 FRAME_EYES = {"level at 60 m": (0.0, -1500.0, 60.0, 0.0, -3.0),
               "climbing at 400 m": (0.0, 2000.0, 400.0, 200.0, -8.0)}
 
@@ -159,10 +164,10 @@ def frame_costs(repeats: int, quick: bool, progress) -> list[dict[str, Any]]:
     bundled terrain under haze and clouds (fog adds to every texel and sample)."""
     import dataclasses
 
-    from channel_worker.pipeline.contract import StageTimes
     from channel_worker.pipeline.render import render_frame
     from channel_worker.pipeline.scene.load import demo_scene_path, load_scene
     from services.rig.frame import ChannelSpec, Eyepoint
+    from services.rig.report import FrameReport
 
     demo = load_scene(demo_scene_path())
     flat = load_scene(demo_scene_path().with_name("airfield.json"))
@@ -171,6 +176,7 @@ def frame_costs(repeats: int, quick: bool, progress) -> list[dict[str, Any]]:
         scenes["airfield on terrain, haze, clouds"] = (demo, dataclasses.replace(demo, fog=None))
     channel = ChannelSpec.symmetric("c", FRAME["width"], FRAME["height"], FRAME["fov_h_deg"])
     out = np.empty((FRAME["height"], FRAME["width"], 3), np.float32)
+    options = RenderOptions(samples=FRAME["samples"], with_range=False)
     rows = []
     for scene_name, (fogged, clear) in scenes.items():
         for eye_name, (x, y, z, h, p) in FRAME_EYES.items():
@@ -179,12 +185,12 @@ def frame_costs(repeats: int, quick: bool, progress) -> list[dict[str, Any]]:
             for label, db in (("fog", fogged), ("no_fog", clear)):
                 frames, stages = [], []
                 for i in range(repeats + 1):  # the first: a warm-up (numba compiles)
-                    times = StageTimes()
+                    report = FrameReport()
                     t0 = time.perf_counter()
-                    render_frame(db, channel, eye, RenderOptions(samples=FRAME["samples"], with_range=False), out=out, times=times)
+                    render_frame(db, channel, eye, options, report=report, out=out)
                     if i:
                         frames.append(time.perf_counter() - t0)
-                        stages.append(times.seconds)
+                        stages.append(report.stage_seconds)
                 row[label] = {"frame_ms": 1e3 * statistics.median(frames),
                               "stages_ms": {k: 1e3 * statistics.median(s.get(k, 0.0) for s in stages)
                                             for k in sorted({k for s in stages for k in s})}}
@@ -292,8 +298,8 @@ def run(record: dict, eyes, repeats: int, lookup_rays: int, error_rays: int, gri
                      f"entries: build {row['build_us']:7.1f} us, lookup {row['lookup_ns']:5.2f} "
                      f"ns, max T error {row['max_colour_error']:.2e}")
     record["rows"] = rows
-    record["seed_linear"] = seed_comparison(eyes, st, rand_c, rand_r, graz_c, graz_r, look_c,
-                                            look_r, repeats)
+    record["patent_linear"] = patent_comparison(eyes, st, rand_c, rand_r, graz_c, graz_r, look_c,
+                                                look_r, repeats)
     record["exact_reference"] = {
         "us_per_ray": 1e6 * ref_seconds / ref_rays, "rays": ref_rays,
         "what": "channel_worker/testing/fog_reference.py axis_optical_depths, vectorised numpy "
@@ -316,9 +322,9 @@ def run(record: dict, eyes, repeats: int, lookup_rays: int, error_rays: int, gri
     record["summary"] = summary
 
 
-def seed_comparison(eyes, st, rand_c, rand_r, graz_c, graz_r, look_c, look_r,
-                    repeats: int) -> dict[str, Any]:
-    """The seed's own look-up for comparison: the stored average interpolated linearly, with
+def patent_comparison(eyes, st, rand_c, rand_r, graz_c, graz_r, look_c, look_r,
+                      repeats: int) -> dict[str, Any]:
+    """US 5,535,374's own look-up for comparison: the stored average interpolated linearly, with
     the resample planes as far apart as the sample planes (fog.py's table at factor 1; only
     the interpolation differs: the closed form beyond the table and the sky are fog.py's)."""
     from channel_worker.pipeline.fog.fog import fog_params
@@ -326,39 +332,40 @@ def seed_comparison(eyes, st, rand_c, rand_r, graz_c, graz_r, look_c, look_r,
     worst, means, lookup = 0.0, [], []
     for _, h in eyes:
         tab = fog_params(make_fog(1.0), None, eye=np.array([0.0, 0.0, h]))
-        _seed_depths(tab.params, look_r[:1000], look_c[:1000])
+        _linear_depths(tab.params, look_r[:1000], look_c[:1000])
         times = []
         for _ in range(repeats):
             t0 = time.perf_counter()
-            _seed_depths(tab.params, look_r, look_c)
+            _linear_depths(tab.params, look_r, look_c)
             times.append(time.perf_counter() - t0)
         lookup.append(1e9 * statistics.median(times) / look_c.size)
         exact_rand, _ = reference(st, h, rand_c, rand_r)
         exact_graz, _ = reference(st, h, graz_c, graz_r)
         finite = np.isfinite(exact_graz)
-        e_rand = transmission_error(_seed_depths(tab.params, rand_r, rand_c), exact_rand)
-        e_graz = transmission_error(_seed_depths(tab.params, graz_r, graz_c)[finite],
+        e_rand = transmission_error(_linear_depths(tab.params, rand_r, rand_c), exact_rand)
+        e_graz = transmission_error(_linear_depths(tab.params, graz_r, graz_c)[finite],
                                     exact_graz[finite])
         worst = max(worst, e_rand["max"], e_graz["max"])
         means.append(e_rand["mean"])
     return {"factor": 1.0, "max_colour_error": worst, "random_mean": statistics.mean(means),
             "lookup_ns_median": statistics.median(lookup),
             "what": "linear interpolation of the stored average between resample planes one "
-                    "sample spacing apart (the seed's look-up)"}
+                    "sample spacing apart (US 5,535,374's look-up)"}
 
 
-_SEED_KERNEL = None
+_LINEAR_KERNEL = None
 
 
-def _seed_depths(f, ranges, cos):
-    """Optical depths by the seed's look-up (compiled on first use: fog.py's layout)."""
-    global _SEED_KERNEL
-    if _SEED_KERNEL is None:
-        _SEED_KERNEL = _make_seed_kernel()
-    return _SEED_KERNEL(f, ranges, cos)
+def _linear_depths(f, ranges, cos):
+    """Optical depths by US 5,535,374's linear look-up (compiled on first use: fog.py's
+    layout)."""
+    global _LINEAR_KERNEL
+    if _LINEAR_KERNEL is None:
+        _LINEAR_KERNEL = _make_linear_kernel()
+    return _LINEAR_KERNEL(f, ranges, cos)
 
 
-def _make_seed_kernel():
+def _make_linear_kernel():
     from numba import njit
 
     from channel_worker.pipeline.contract import F_INV_DT, F_J0, F_N, F_TABLE
@@ -422,15 +429,16 @@ def print_report(record: dict) -> None:
                "visibility no fog"],
               [[r["scene"], r["eye"], f"{r['fog']['frame_ms']:.1f}",
                 f"{r['no_fog']['frame_ms']:.1f}",
-                f"{r['fog']['stages_ms'].get('terrain', 0.0):.1f}",
+                # The background stage was named "terrain" in records before the rename.
+                f"{r['fog']['stages_ms'].get('background', r['fog']['stages_ms'].get('terrain', 0.0)):.1f}",
                 f"{r['fog']['stages_ms'].get('visibility', 0.0):.1f}",
                 f"{r['no_fog']['stages_ms'].get('visibility', 0.0):.1f}"]
                for r in record["frames"]])
-    seed = record.get("seed_linear")
-    if seed:
-        print(f"\nthe seed's look-up (the average interpolated linearly, resample planes one "
-              f"sample spacing apart): max colour error {seed['max_colour_error']:.2e}, mean "
-              f"{seed['random_mean']:.1e}, lookup {seed['lookup_ns_median']:.2f} ns per ray")
+    linear = record.get("patent_linear", record.get("seed_linear"))
+    if linear:
+        print(f"\nUS 5,535,374's look-up (the average interpolated linearly, resample planes one "
+              f"sample spacing apart): max colour error {linear['max_colour_error']:.2e}, mean "
+              f"{linear['random_mean']:.1e}, lookup {linear['lookup_ns_median']:.2f} ns per ray")
     ex = record["exact_reference"]
     print(f"\nexact reference: {ex['us_per_ray']:.2f} us per ray ({ex['rays']:,} rays; "
           f"{ex['what']})")

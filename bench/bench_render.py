@@ -8,7 +8,7 @@ For every channel of the default rig (left, centre, right: 60 x 45 degrees each)
 (1024 x 768, the rig's own, and 1280 x 1024), sample count (1, 4) and eyepoint of the bundled
 flight (t = 2, 8, 14, 20 s), it times
 
-    render_frame(database, channel, eyepoint, samples=N, times=StageTimes())
+    render_frame(database, channel, eyepoint, RenderOptions(samples=N), report=FrameReport())
 
 after a warm-up render of each size and sample count (numba compiles its kernels on the first
 call). Each stage's time is the median over the repeats. It prints a table, writes
@@ -33,14 +33,14 @@ import numpy as np
 # Runnable from a plain checkout too (`python bench/bench_render.py` puts bench/ first on the path).
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from channel_worker.pipeline.contract import StageTimes  # noqa: E402
-from channel_worker.pipeline.render import render_frame  # noqa: E402
-from channel_worker.pipeline.scene.database import Database  # noqa: E402
-from channel_worker.pipeline.scene.load import bundled_scene_path, load_scene  # noqa: E402
-from host_sim.flight import bundled_flight  # noqa: E402
-from services.rig.frame import ChannelSpec, Eyepoint  # noqa: E402
-from services.rig.rigfile import default_rig_path, load_rig  # noqa: E402
-from services.rig.options import RenderOptions  # noqa: E402
+from channel_worker.pipeline.render import render_frame
+from channel_worker.pipeline.scene.database import Database
+from channel_worker.pipeline.scene.load import bundled_scene_path, load_scene
+from host_sim.flight import bundled_flight
+from services.rig.frame import ChannelSpec, Eyepoint
+from services.rig.options import RenderOptions
+from services.rig.report import FrameReport
+from services.rig.rigfile import default_rig_path, load_rig
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SIZES = ((1024, 768), (1280, 1024))
@@ -52,17 +52,20 @@ QUICK_REPEATS = 2
 
 
 def measure(database: Database, channel: ChannelSpec, eyepoint: Eyepoint, samples: int,
-            repeats: int) -> tuple[dict[str, float], float]:
-    """Median seconds per stage, and the median frame total, over `repeats` renders."""
+            repeats: int) -> tuple[dict[str, float], float, FrameReport]:
+    """Median seconds per stage, the median frame total, and the median frame's report, over `repeats` renders."""
     runs = []
     # As the rig's workers render: colour only (no ranges), into one reused array.
     out = np.empty((channel.height, channel.width, 3), np.float32)
     for _ in range(repeats):
-        times = StageTimes()
-        render_frame(database, channel, eyepoint, RenderOptions(samples=samples, with_range=False), times=times, out=out)
-        runs.append(times)
-    stages = {stage: statistics.median(r.seconds[stage] for r in runs) for stage in runs[0].seconds}
-    return stages, statistics.median(r.total for r in runs)
+        report = FrameReport()
+        render_frame(database, channel, eyepoint, RenderOptions(samples=samples, with_range=False),
+                     report=report, out=out)
+        runs.append(report)
+    stages = {stage: statistics.median(r.stage_seconds[stage] for r in runs)
+              for stage in runs[0].stage_seconds}
+    by_total = sorted(runs, key=lambda r: r.total_seconds)
+    return stages, statistics.median(r.total_seconds for r in runs), by_total[len(by_total) // 2]
 
 
 def machine() -> dict[str, Any]:
@@ -204,12 +207,12 @@ def main(argv: list[str] | None = None) -> int:
             for t_s in times_s:
                 eyepoint = flight.eyepoint_at(t_s)
                 for channel in channels:
-                    med, total = measure(database, channel, eyepoint, samples, repeats)
+                    med, total, frame = measure(database, channel, eyepoint, samples, repeats)
                     stages = stages or list(med)
                     rows.append({"width": width, "height": height, "samples": samples, "t_s": t_s,
                                  "phase": flight.phase_at(t_s), "channel": channel.name,
                                  "stages_ms": {s: 1e3 * v for s, v in med.items()},
-                                 "total_ms": 1e3 * total})
+                                 "total_ms": 1e3 * total, "frame_report": frame.to_dict()})
             print(f"  measured {width}x{height}, {samples} spp", file=sys.stderr)
 
     summary = summarise(rows)

@@ -1,6 +1,6 @@
-"""The terrain stage (seed 002) on one core: frame time and voxels visited against pitch and
-altitude, what haze and clouds cost, and speed against error for the level bias and the
-pre-image resolution (bench/README.md).
+"""The background stage's voxel terrain (JP H07-76990) on one core: frame time and voxels
+visited against pitch and altitude, what haze and clouds cost, and speed against error for the
+level bias and the pre-image resolution (bench/README.md).
 
     python bench/bench_terrain.py                 # what `make bench` runs (8-9 minutes)
     python bench/bench_terrain.py --repeats 9     # steadier medians on a busy machine
@@ -10,13 +10,17 @@ pre-image resolution (bench/README.md).
 1. Sweep: a 4096 x 4096-voxel, 3 m procedural database (bench/scenes/terrain.py, cached after
    its first build) seen from 50 to 4000 m above the ground under the eye at pitches -90 to 0
    degrees (heading 45, roll 0), 1280 x 1024, 60 degrees across, 4 samples: per cell the time
-   of render_terrain called alone, of the terrain stage inside render_frame and of the whole
-   frame (a scene of terrain only), and the voxels visited.
+   of render_background called alone, of the background stage inside render_frame and of the
+   whole frame (a scene of terrain only), and the voxels visited.
 2. The bundled Jacksboro terrain in the demo scene (terrain, haze, clouds, the airfield's
    polygons), centre channel, along the bundled flight.
 3. The stage split into column scan, cloud scan and warp, with and without haze and clouds;
    the flat airfield (no terrain, no haze) with and without haze and clouds, to show that a
    scene without them skips the stage.
+
+The record's keys keep their names from when the stage was called "terrain" and its function
+render_terrain (terrain_ms, render_terrain_ms), so that records compare across versions; they
+now time the "background" stage and render_background.
 4. The level window each level bias really selects (a flat database coloured by level).
 5. Speed against error for level_bias in (-1, 0, 1, 2) and pre-image oversampling in (0.75, 1,
    1.5, 2): stage time at 1280 x 1024 against the error of that same render, on every 4th
@@ -33,6 +37,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import datetime as dt
+import functools
 import math
 import os
 import statistics
@@ -50,6 +55,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from common import bench_parser, finish, replot  # bench/ is on the path as a script
+
 from services.rig.options import RenderOptions
 
 #: The issue's channel: 1280 x 1024, 60 degrees across, square pixels, 4 samples (rgss4).
@@ -83,7 +89,7 @@ HAZE = {"visibility_m": 30000.0, "scale_height_m": 1500.0, "base_height_m": 0.0,
         "colour": "#c4ccd6"}
 CLOUDS = {"cell_m": 400.0, "base_m": 1100.0, "thickness_m": 700.0, "cover": 0.3,
           "extinction_per_m": 0.02, "colour": "#f4f6fa", "seed": 7}
-QUICK = {"repeats": 1, "pitches": (-90, -20, 0), "altitudes": (200, 4000),
+QUICK: dict[str, Any] = {"repeats": 1, "pitches": (-90, -20, 0), "altitudes": (200, 4000),
          "flight": (2.0, 20.0), "biases": (-1, 0, 2), "oversamples": (1.0, 2.0),
          "error_stride": 8, "error_views": ((200, -20),), "split_views": ((200, -10, True),)}
 
@@ -134,21 +140,28 @@ def git_state() -> dict[str, Any]:
 
 @contextlib.contextmanager
 def preimage_oversample(value: float) -> Iterator[None]:
-    """Render with PREIMAGE_OVERSAMPLE = value: the function render_terrain calls is replaced
-    for the duration. (Up to 95de649 setting the module constant did nothing, preimage_grid's
-    default argument having been bound at import; this works before and after.)"""
+    """Render with PREIMAGE_OVERSAMPLE = value (preimage_grid reads it at every call)."""
     from channel_worker.pipeline.background import terrain
 
-    original = terrain.preimage_grid
-
-    def grid(view, oversample: float = value):
-        return original(view, oversample)
-
-    terrain.preimage_grid = grid
+    original = terrain.PREIMAGE_OVERSAMPLE
+    terrain.PREIMAGE_OVERSAMPLE = value
     try:
         yield
     finally:
-        terrain.preimage_grid = original
+        terrain.PREIMAGE_OVERSAMPLE = original
+
+
+def background_alone(database, view, offsets: np.ndarray, *, level_bias: int = 0):
+    """The background stage called by itself, with per-sample depth everywhere (bins None):
+    (Background, its counters)."""
+    from channel_worker.pipeline.background.background import render_background
+    from channel_worker.pipeline.geometry.view import frame_constants
+
+    counters: dict[str, int] = {}
+    frame = frame_constants(view, database, offsets)
+    background = render_background(database, view, frame, RenderOptions(terrain_bias=level_bias),
+                                   None, counters)
+    return background, counters
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -175,9 +188,9 @@ def main(argv: list[str] | None = None) -> int:
 
     progress = Progress()
     record: dict[str, Any] = {
-        "benchmark": "terrain stage (seed 002), one core: time and voxels against pitch and "
-                     "altitude, options, speed against error for level bias and pre-image "
-                     "resolution",
+        "benchmark": "background stage's voxel terrain (JP H07-76990), one core: time and voxels "
+                     "against pitch and altitude, options, speed against error for level bias and "
+                     "pre-image resolution",
         "date": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "machine": machine(),
         "git": git_state(),
@@ -187,10 +200,10 @@ def main(argv: list[str] | None = None) -> int:
         "quick": quick,
         "repeats": repeats,
         "statistic": "medians over the repeats, after one warm-up call. render_terrain_ms: "
-                     "wall time of render_terrain called alone (per-sample depth everywhere, "
-                     "depth_tiles=None); terrain_ms: StageTimes['terrain'] inside render_frame "
-                     "(per-sample depth only in sub-areas holding polygons); frame_ms: wall "
-                     "time of render_frame",
+                     "wall time of render_background called alone (per-sample depth "
+                     "everywhere, bins=None); terrain_ms: FrameReport.stage_seconds"
+                     "['background'] inside render_frame (per-sample depth only in sub-areas "
+                     "holding polygons); frame_ms: wall time of render_frame",
     }
     sweep(record, quick, repeats, progress)
     bundled(record, quick, repeats, progress)
@@ -220,52 +233,51 @@ def sweep_eye_xy(terrain) -> tuple[float, float]:
 
 def frame_case(database, channel, eyepoint, repeats: int, *, alone: bool = False) -> dict:
     """Time render_frame as a channel worker calls it (colour only, into a reused buffer) and,
-    with alone, render_terrain called by itself (per-sample depth everywhere), alternating the
-    two in every repetition so that a busy moment of the machine falls on both alike."""
-    from channel_worker.pipeline.background.terrain import render_terrain
-    from channel_worker.pipeline.contract import StageTimes
+    with alone, render_background called by itself (per-sample depth everywhere), alternating
+    the two in every repetition so that a busy moment of the machine falls on both alike."""
     from channel_worker.pipeline.geometry.view import make_view
     from channel_worker.pipeline.render import render_frame
+    from services.rig.report import FrameReport
 
     out = np.empty((channel.height, channel.width, 3), np.float32)
     view = make_view(channel, eyepoint)
     offsets = RenderOptions(samples=SAMPLES).sample_offsets()
-    runs: list[StageTimes] = []
+    options = RenderOptions(samples=SAMPLES, with_range=False)
+    runs: list[dict[str, float]] = []
     walls: list[float] = []
     alone_walls: list[float] = []
-    stats: dict[str, int] = {}
+    report = FrameReport()
     for k in range(repeats + 1):  # the first is the warm-up: numba compiles, pages are read
-        times = StageTimes()
-        stats.clear()
+        report.clear()
         t0 = time.perf_counter()
-        render_frame(database, channel, eyepoint, RenderOptions(samples=SAMPLES, with_range=False), out=out,
-                     times=times, stats=stats)
+        render_frame(database, channel, eyepoint, options, report=report, out=out)
         t1 = time.perf_counter()
         if alone:
-            render_terrain(database, view, offsets)
+            background_alone(database, view, offsets)
         t2 = time.perf_counter()
         if k:
-            runs.append(times)
+            runs.append(dict(report.stage_seconds))
             walls.append(t1 - t0)
             alone_walls.append(t2 - t1)
     if not runs:
         return {}
-    stages = list(runs[0].seconds)
+    counters = report.counters
+    stages = list(runs[0])
     return {
-        "terrain_ms": (median_ms([r.seconds["terrain"] for r in runs])
-                       if "terrain" in runs[0].seconds else None),
+        "terrain_ms": (median_ms([r["background"] for r in runs])
+                       if "background" in runs[0] else None),
         "render_terrain_ms": median_ms(alone_walls) if alone else None,
         "frame_ms": median_ms(walls),
         "frame_min_ms": 1e3 * min(walls),
         "render_terrain_min_ms": 1e3 * min(alone_walls) if alone else None,
         "render_terrain_ms_all": [1e3 * w for w in alone_walls] if alone else None,
         "frame_ms_all": [1e3 * w for w in walls],
-        "terrain_ms_all": [1e3 * r.seconds.get("terrain", math.nan) for r in runs],
-        "stages_ms": {s: median_ms([r.seconds[s] for r in runs]) for s in stages},
-        "voxels": stats.get("terrain_voxels"),
-        "columns": stats.get("terrain_columns"),
-        "rows": stats.get("terrain_rows"),
-        "eye_clamped": stats.get("terrain_eye_clamped"),
+        "terrain_ms_all": [1e3 * r.get("background", math.nan) for r in runs],
+        "stages_ms": {s: median_ms([r[s] for r in runs]) for s in stages},
+        "voxels": counters.get("terrain_voxels"),
+        "columns": counters.get("terrain_columns"),
+        "rows": counters.get("terrain_rows"),
+        "eye_clamped": counters.get("terrain_eye_clamped"),
     }
 
 
@@ -312,19 +324,19 @@ def sweep(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
                          # Width of a level-0 voxel, in pixels, straight below the eye.
                          "level0_voxel_px_at_nadir": terrain.spacing_m / (agl * pixel_rad),
                          **case})
-            progress(f"sweep {agl:5d} m {pitch:4d} deg: render_terrain "
+            progress(f"sweep {agl:5d} m {pitch:4d} deg: render_background "
                      f"{case['render_terrain_ms']:6.1f} ms, in the frame {case['terrain_ms']:6.1f}"
                      f" ms, frame {case['frame_ms']:6.1f} ms, {case['voxels']:9,d} voxels")
     record["sweep"] = rows
-    record["sweep_check"] = check_seed(rows, altitudes, pitches)
+    record["sweep_check"] = check_voxel_load(rows, altitudes, pitches)
     spread = sorted(max(r["frame_ms_all"]) / min(r["frame_ms_all"]) for r in rows)
     record["sweep_noise"] = {"what": "slowest / fastest of each cell's repeated frames",
                              "median": spread[len(spread) // 2], "worst": spread[-1]}
 
 
-def check_seed(rows: list[dict], altitudes, pitches) -> dict[str, Any]:
-    """Does the seed's expectation hold: voxels visited about constant with altitude (range),
-    growing as the pitch gets shallower?"""
+def check_voxel_load(rows: list[dict], altitudes, pitches) -> dict[str, Any]:
+    """Does JP H07-76990's expectation hold: voxels visited about constant with altitude
+    (range), growing as the pitch gets shallower?"""
     vox = {(r["altitude_agl_m"], r["pitch_deg"]): r["voxels"] for r in rows}
     by_pitch = {}
     for p in pitches:
@@ -361,6 +373,8 @@ def bundled(record: dict, quick: bool, repeats: int, progress: Progress) -> None
 
     progress("bundled terrain: loading the demo scene (builds the terrain on first use)")
     demo = load_scene(demo_scene_path())
+    if demo.terrain is None:
+        raise RuntimeError(f"{demo_scene_path()}: the demo scene has no terrain")
     channel = load_rig(default_rig_path()).with_size(WIDTH, HEIGHT).channels[1].spec
     flight = bundled_flight()
     offsets = RenderOptions(samples=SAMPLES).sample_offsets()
@@ -413,36 +427,38 @@ def bundled(record: dict, quick: bool, repeats: int, progress: Progress) -> None
                           **stage_split(db, view, offsets, repeats)})
         progress(f"stage split, fractal {agl} m pitch {pitch}: done")
     record["stage_split"] = {
-        "method": "terrain._scan (column scan), terrain._scan_clouds (cloud scan) and "
-                  "terrain.render_terrain (the whole stage) timed one after the other in each "
-                  "repetition; medians over the repetitions; warp_ms = median of total - scan - "
-                  "clouds (the warp plus grid set-up, sky haze table and allocation)",
+        "method": "terrain.scan_terrain (column scan), clouds.scan_clouds (cloud scan) and "
+                  "background.render_background (the whole stage) timed one after the other in "
+                  "each repetition; medians over the repetitions; warp_ms = median of total - "
+                  "scan - clouds (the warp plus air, grid set-up, sky haze table and "
+                  "allocation)",
         "haze": HAZE, "clouds": CLOUDS, "rows": split}
 
 
 def stage_split(database, view, offsets: np.ndarray, repeats: int) -> dict[str, Any]:
-    """Scan, cloud scan and the rest (warp) of one render_terrain, in milliseconds.
+    """Scan, cloud scan and the rest (warp) of one render_background, in milliseconds.
 
     Each repetition times the column scan, the cloud scan and the whole stage one after the
     other, so that a busy moment of the machine falls on all three alike; the warp is the
     median of the per-repetition remainders."""
     from channel_worker.pipeline.background import terrain as T
-    from channel_worker.pipeline.background.haze import haze_params
+    from channel_worker.pipeline.background.air import air_params
+    from channel_worker.pipeline.background.clouds import scan_clouds
 
+    options = RenderOptions()
     grid = T.preimage_grid(view)
-    haze = haze_params(database.haze, float(view.eye[2]))
-    stats: dict[str, int] = {}
+    air = air_params(database, view, options.fog_table_subdivision)
+    counters: dict[str, int] = {}
     scans, clouds, totals = [], [], []
-    background = None
     for k in range(repeats + 1):  # the first is the warm-up
         t0 = time.perf_counter()
         if database.terrain is not None:
-            T._scan(database, view, grid, haze, T.DEFAULT_LEVEL_BIAS, stats)
+            T.scan_terrain(database, view, grid, air, options.terrain_bias, {})
         t1 = time.perf_counter()
         if database.clouds is not None:
-            T._scan_clouds(database, view, grid, haze)
+            scan_clouds(database, view, grid, air)
         t2 = time.perf_counter()
-        background = T.render_terrain(database, view, offsets)
+        _, counters = background_alone(database, view, offsets)
         t3 = time.perf_counter()
         if k:
             scans.append(t1 - t0)
@@ -451,14 +467,13 @@ def stage_split(database, view, offsets: np.ndarray, repeats: int) -> dict[str, 
     warps = [max(t - a - b, 0.0) for t, a, b in zip(totals, scans, clouds, strict=True)]
     return {"scan_ms": median_ms(scans), "clouds_ms": median_ms(clouds),
             "warp_ms": median_ms(warps), "total_ms": median_ms(totals),
-            "voxels": background.stats.get("terrain_voxels") if background is not None else None}
+            "voxels": counters.get("terrain_voxels")}
 
 
 # --- 3. a scene without terrain --------------------------------------------------------------
 
 def no_terrain(record: dict, repeats: int, progress: Progress) -> None:
     """The flat airfield (no terrain, no haze) skips the stage; haze or clouds alone run it."""
-    from channel_worker.pipeline.background import terrain as T
     from channel_worker.pipeline.geometry.view import make_view
     from channel_worker.pipeline.scene.load import bundled_scene_path, demo_scene_path, load_scene
     from host_sim.flight import bundled_flight
@@ -477,14 +492,19 @@ def no_terrain(record: dict, repeats: int, progress: Progress) -> None:
     for name, db in variants.items():
         case = frame_case(db, channel, eye, max(repeats, 5))
         rows.append({"scene": name, "terrain_stage_run": case["terrain_ms"] is not None, **case})
-    # What deciding to skip costs: render_terrain on the flat scene returns None at once.
+    # What deciding to skip costs: render_background on the flat scene returns no_background()
+    # at once (render_frame does not even call it).
+    from channel_worker.pipeline.background.background import render_background
+    from channel_worker.pipeline.geometry.view import frame_constants
+
     view = make_view(channel, eye)
-    offsets = RenderOptions(samples=SAMPLES).sample_offsets()
-    walls, result = timed(lambda: T.render_terrain(flat, view, offsets), 1000)
+    frame = frame_constants(view, flat, RenderOptions(samples=SAMPLES).sample_offsets())
+    options = RenderOptions(samples=SAMPLES)
+    walls, result = timed(lambda: render_background(flat, view, frame, options, None, {}), 1000)
     record["no_terrain"] = {
         "eyepoint": "bundled flight t = 20 s", "channel": channel.name, "samples": SAMPLES,
         "rows": rows,
-        "render_terrain_on_flat_scene": {"returns_none": result is None,
+        "render_terrain_on_flat_scene": {"returns_no_background": not result.on,
                                          "median_us": 1e6 * statistics.median(walls)}}
     progress("flat airfield with and without haze and clouds: done")
 
@@ -521,7 +541,7 @@ def level_window(record: dict, progress: Progress) -> None:
     """Which level each bias draws straight below the eye, as the eye climbs: the measured
     window of voxel widths in pixels (docs/terrain.md: 2**bias to 2**(bias + 1))."""
     from bench.scenes.terrain import terrain_scene
-    from channel_worker.pipeline.background.terrain import _SRGB_LUT, render_terrain
+    from channel_worker.pipeline.background.terrain import _SRGB_LUT
     from channel_worker.pipeline.geometry.view import make_view
     from services.rig.frame import ChannelSpec, Eyepoint
 
@@ -542,7 +562,7 @@ def level_window(record: dict, progress: Progress) -> None:
             agl = probe.spacing_m / (level0_px * pixel_rad)
             eye = Eyepoint(position=np.array([0.0, 0.0, agl]), heading_deg=0.0, pitch_deg=-90.0,
                            roll_deg=0.0)
-            bg = render_terrain(database, make_view(channel, eye), centre, level_bias=bias)
+            bg, _ = background_alone(database, make_view(channel, eye), centre, level_bias=bias)
             level = int(np.argmin(np.abs(reds - bg.rgb[32, 32, 0])))
             seen.append({"altitude_m": agl, "level0_voxel_px": level0_px, "level": level,
                          "voxel_px": level0_px * 2 ** level})
@@ -580,8 +600,7 @@ def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> No
     centre = np.array([[0.5, 0.5]])
     both = np.concatenate([rgss4, centre])  # the reference traces these five per pixel
 
-    # Does setting the module constant change the pre-image? (It does not: see
-    # preimage_oversample.)
+    # Does setting the module constant change the pre-image? (preimage_oversample relies on it.)
     probe_view = make_view(sweep_channel(), eyepoint_above(terrain, x, y, 200.0,
                                                           heading_deg=HEADING_DEG, pitch_deg=-20.0))
     before = T.preimage_grid(probe_view).ncols
@@ -594,7 +613,7 @@ def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> No
         eye = eyepoint_above(terrain, x, y, float(agl), heading_deg=HEADING_DEG,
                              pitch_deg=float(pitch))
         view = make_view(sweep_channel(), eye)
-        T.render_terrain(database, view, rgss4)  # warm-up: the view's pages are read
+        background_alone(database, view, rgss4)  # warm-up: the view's pages are read
         t0 = time.perf_counter()
         ref = reference_subset(terrain, view, both, stride)
         cases.append({"agl": agl, "pitch": pitch, "view": view, **ref,
@@ -610,15 +629,16 @@ def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> No
             per_view = []
             with preimage_oversample(over):
                 for c in cases:
-                    walls, bg = timed(lambda c=c, b=bias: T.render_terrain(
-                        database, c["view"], rgss4, level_bias=b), repeats, warm=False)
-                    bgc = T.render_terrain(database, c["view"], centre, level_bias=bias)
+                    walls, (bg, counters) = timed(functools.partial(
+                        background_alone, database, c["view"], rgss4, level_bias=bias), repeats,
+                        warm=False)
+                    bgc, _ = background_alone(database, c["view"], centre, level_bias=bias)
                     per_view.append({"altitude_agl_m": c["agl"], "pitch_deg": c["pitch"],
                                      "terrain_ms": median_ms(walls),
                                      "terrain_ms_all": [1e3 * w for w in walls],
-                                     "voxels": bg.stats["terrain_voxels"],
-                                     "columns": bg.stats["terrain_columns"],
-                                     "rows": bg.stats["terrain_rows"],
+                                     "voxels": counters["terrain_voxels"],
+                                     "columns": counters["terrain_columns"],
+                                     "rows": counters["terrain_rows"],
                                      **subset_error(bg, bgc, c)})
             row = {"level_bias": bias, "preimage_oversample": over,
                    "terrain_ms": float(np.mean([v["terrain_ms"] for v in per_view])),
@@ -634,8 +654,8 @@ def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> No
     record["speed_vs_error"] = {
         "scene": f"fractal terrain only, sky = earth = {GREY} (a miss is the same colour in both)",
         "timing": {"width": WIDTH, "height": HEIGHT, "samples": SAMPLES, "repeats": repeats,
-                   "what": "render_terrain alone, level_bias and pre-image oversample as given; no "
-                           "warm-up call per setting (one per view before the grid)"},
+                   "what": "render_background alone, level_bias and pre-image oversample as "
+                           "given; no warm-up call per setting (one per view before the grid)"},
         "error": {"pixels": f"every {stride}th pixel each way of the same {WIDTH} x {HEIGHT} "
                             f"render ({w} x {h} pixels, from pixel {stride // 2})",
                   "width": w, "height": h, "stride": stride,
@@ -708,7 +728,7 @@ def table(head: list[str], body: list[list[str]]) -> None:
 
 
 def print_report(record: dict) -> None:
-    """The tables and the verdict on the seed's expectations."""
+    """The tables and the verdict on JP H07-76990's expectations."""
     rows = record["sweep"]
     s = record["sweep_settings"]
     altitudes, pitches = s["altitudes_agl_m"], s["pitches_deg"]
@@ -719,9 +739,9 @@ def print_report(record: dict) -> None:
           f"{SAMPLES}, one core; heading {s['heading_deg']:g}, roll 0; rows: height above the "
           "ground under the eye, columns: pitch")
     for title, key, fmt in (("voxels visited (thousands)", "voxels", lambda v: f"{v / 1e3:,.0f}"),
-                            ("render_terrain alone (per-sample depth everywhere), median ms",
+                            ("render_background alone (per-sample depth everywhere), median ms",
                              "render_terrain_ms", lambda v: f"{v:.1f}"),
-                            (("terrain stage inside render_frame (no polygons, so no "
+                            (("background stage inside render_frame (no polygons, so no "
                               "per-sample depth), median ms"), "terrain_ms",
                              lambda v: f"{v:.1f}"),
                             ("whole frame (terrain-only scene), median ms", "frame_ms",
@@ -730,7 +750,7 @@ def print_report(record: dict) -> None:
         table(["agl m"] + [f"{p}" for p in pitches],
               [[str(a)] + [fmt(cell[(a, p)][key]) for p in pitches] for a in altitudes])
     chk = record["sweep_check"]
-    print("\nseed: voxels visited about constant with altitude (range) -> "
+    print("\nJP H07-76990: voxels visited about constant with altitude (range) -> "
           + ("HOLDS" if chk["constant_with_altitude"] else "DOES NOT HOLD"))
     for p, d in chk["voxels_by_pitch_over_altitudes"].items():
         print(f"  pitch {p:>4s}: {d['min']:>10,} .. {d['max']:>10,} voxels over the altitudes "
@@ -740,7 +760,7 @@ def print_report(record: dict) -> None:
         f"{cell[(a, pitches[0])]['level0_voxel_px_at_nadir']:.2g} px at {a} m" for a in altitudes)
         + ": below the level window the finest level is magnified and fewer voxels cover the "
           "view")
-    print("seed: voxels visited grow as the pitch gets shallower -> "
+    print("JP H07-76990: voxels visited grow as the pitch gets shallower -> "
           + ("HOLDS" if chk["grows_as_pitch_gets_shallower"] else "DOES NOT HOLD everywhere"))
     for a, d in chk["voxels_by_altitude_over_pitch"].items():
         drops = "; ".join(d["drops_over_10_percent"]) or "none"
@@ -754,7 +774,7 @@ def print_report(record: dict) -> None:
           [[f"{p['t_s']:g}", f"{p['terrain_ms']:.1f}", f"{p['frame_ms']:.1f}", f"{p['voxels']:,}",
             f"{p['columns']} x {p['rows']}"] for p in b["points"]])
 
-    print("\nterrain stage split (median ms): scan = column scan, clouds = cloud scan, "
+    print("\nbackground stage split (median ms): scan = column scan, clouds = cloud scan, "
           "warp = the rest")
     table(["scene", "view", "variant", "scan", "clouds", "warp", "total", "voxels"],
           [[r["scene"], r["view"], r["variant"], f"{r['scan_ms']:.1f}", f"{r['clouds_ms']:.1f}",
@@ -764,12 +784,13 @@ def print_report(record: dict) -> None:
 
     nt = record["no_terrain"]
     print(f"\na scene without terrain or haze ({nt['channel']} channel, {nt['eyepoint']})")
-    table(["scene", "terrain stage", "terrain ms", "frame ms"],
+    table(["scene", "background stage", "background ms", "frame ms"],
           [[r["scene"], "run" if r["terrain_stage_run"] else "skipped",
             f"{r['terrain_ms']:.1f}" if r["terrain_ms"] is not None else "-",
             f"{r['frame_ms']:.1f}"] for r in nt["rows"]])
     rt = nt["render_terrain_on_flat_scene"]
-    print(f"  render_terrain on the flat scene returns None: {rt['returns_none']} "
+    skipped = rt.get("returns_no_background", rt.get("returns_none"))
+    print(f"  render_background on the flat scene returns no_background(): {skipped} "
           f"({rt['median_us']:.1f} us)")
 
     print("\nlevel window each bias selects (voxel width in pixels where it is free to choose)")
@@ -781,7 +802,7 @@ def print_report(record: dict) -> None:
 
     sv = record["speed_vs_error"]
     e = sv["error"]
-    print(f"\nspeed against error: terrain stage at {WIDTH} x {HEIGHT} (median ms) and its "
+    print(f"\nspeed against error: background stage at {WIDTH} x {HEIGHT} (median ms) and its "
           f"error on every {e['stride']}th pixel ({e['width']} x {e['height']}) against the exact "
           f"reference; mean over {len(sv['views'])} views")
     table(["bias", "oversample", "ms", "voxels", "colour mean", "colour p99", "coverage",
@@ -791,9 +812,8 @@ def print_report(record: dict) -> None:
             f"{r['coverage_disagree']:.4f}", f"{r['range_median']:.4f}",
             f"{r['range_p95']:.4f}"] for r in sv["rows"]])
     if not sv["module_constant_patch_effective"]:
-        print("  (setting terrain.PREIMAGE_OVERSAMPLE has no effect on render_terrain at this "
-              "commit: preimage_grid's default was bound at import; the bench replaces "
-              "preimage_grid)")
+        print("  (setting terrain.PREIMAGE_OVERSAMPLE had no effect at this commit: the "
+              "oversample rows all show the default)")
     m = record["machine"]
     noise = record["sweep_noise"]
     print(f"\nnoise: the slowest of a sweep cell's frames is x {noise['median']:.2f} the fastest "
@@ -832,7 +852,7 @@ def plot(record: dict, path: Path) -> bool:
     axes[0, 0].legend(fontsize=7)
     axes[0, 1].set_xlabel("pitch, degrees")
     axes[0, 1].set_ylabel("median ms, one core")
-    axes[0, 1].set_title(f"render_terrain alone (solid), whole frame of a terrain-only scene "
+    axes[0, 1].set_title(f"render_background alone (solid), whole frame of a terrain-only scene "
                          f"(dotted)\n{WIDTH} x {HEIGHT}, {SAMPLES}, fractal terrain", fontsize=9)
     axes[0, 1].legend(fontsize=7)
 
@@ -842,15 +862,15 @@ def plot(record: dict, path: Path) -> bool:
               + r["variant"].removesuffix(" (demo)") for r in split]
     ypos = np.arange(len(split))
     left = np.zeros(len(split))
-    for key, colour in (("scan_ms", "tab:brown"), ("clouds_ms", "tab:gray"),
-                        ("warp_ms", "tab:blue")):
+    for key, bar_colour in (("scan_ms", "tab:brown"), ("clouds_ms", "tab:gray"),
+                            ("warp_ms", "tab:blue")):
         v = np.array([r[key] for r in split])
-        axes[1, 0].barh(ypos, v, left=left, color=colour, label=key.removesuffix("_ms"))
+        axes[1, 0].barh(ypos, v, left=left, color=bar_colour, label=key.removesuffix("_ms"))
         left += v
     axes[1, 0].set_yticks(ypos, labels, fontsize=6)
     axes[1, 0].invert_yaxis()
     axes[1, 0].set_xlabel("median ms, one core")
-    axes[1, 0].set_title("terrain stage split: scan, cloud scan, warp", fontsize=9)
+    axes[1, 0].set_title("background stage split: scan, cloud scan, warp", fontsize=9)
     axes[1, 0].legend(fontsize=7)
 
     sv = record["speed_vs_error"]
@@ -869,7 +889,7 @@ def plot(record: dict, path: Path) -> bool:
                         textcoords="offset points", xytext=(4, 3), fontsize=6)
     ax.set_xlabel(f"mean colour error against the exact reference (every "
                   f"{sv['error']['stride']}th pixel, linear RGB)")
-    ax.set_ylabel(f"terrain stage, median ms at {WIDTH} x {HEIGHT}")
+    ax.set_ylabel(f"background stage, median ms at {WIDTH} x {HEIGHT}")
     ax.set_title("speed against error: level bias (colour), pre-image oversample (label)",
                  fontsize=9)
     ax.legend(fontsize=7)

@@ -10,7 +10,7 @@ The approach scene (bench/scenes/approach.py: about 10,000 polygons, a quarter o
 translucent tree billboards) is rendered from its standard eyepoint into a 1280 x 1024 channel
 with every sample pattern (centre, rgss4, d3d8, d3d16) and sub-area sizes 8, 16 and 32, on one
 core: the process is pinned to one CPU and numba runs one thread. Each case is timed `--repeats`
-times after a warm-up; stage times come from StageTimes, the frame time is the median
+times after a warm-up; stage times come from FrameReport, the frame time is the median
 wall-clock time of the render_frame call. Every case's picture is compared with a reference
 (the same renderer, d3d16 on a 4 x 4 times finer raster, box-filtered down: 256 samples per
 pixel). Mesa's llvmpipe draws the same triangles with 4x MSAA at the same size, pinned to the
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import inspect
 import json
 import os
 import statistics
@@ -38,6 +37,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from common import pin_to_one_cpu  # bench/ is on the path when run as a script
+
 from services.rig.options import RenderOptions
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -101,28 +101,24 @@ def main(argv: list[str] | None = None) -> int:
         approach_scene,
         scene_counts,
     )
-    from channel_worker.pipeline.binning.binning import DEFAULT_SUBAREA
-    from channel_worker.pipeline.contract import StageTimes
     from channel_worker.pipeline.render import render_frame
     from channel_worker.pipeline.scene.load import parse_scene
+    from services.rig.report import FrameReport
+
+    default_subarea = RenderOptions().subarea
 
     doc = approach_scene()
     database = parse_scene(doc, source="bench approach scene")
     channel, eyepoint = approach_channel(), approach_eyepoint()
     width, height = channel.width, channel.height
-    params = inspect.signature(render_frame).parameters
     # As a channel worker renders: colour only, into a buffer reused frame after frame.
     base_kw: dict[str, Any] = {"with_range": False}
-    out_buffer = np.empty((height, width, 3), np.float32) if "out" in params else None
+    out_buffer = np.empty((height, width, 3), np.float32)
 
-    def render(pattern: str, subarea: int, times: StageTimes | None = None,
-               stats: dict | None = None) -> np.ndarray:
-        kw = dict(base_kw, samples=pattern, subarea=subarea, times=times)
-        if out_buffer is not None:
-            kw["out"] = out_buffer
-        if stats is not None and "stats" in params:
-            kw["stats"] = stats
-        return render_frame(database, channel, eyepoint, **kw).rgb
+    def render(pattern: str, subarea: int, report: FrameReport | None = None) -> np.ndarray:
+        options = RenderOptions(samples=pattern, subarea=subarea, **base_kw)
+        return render_frame(database, channel, eyepoint, options, report=report,
+                            out=out_buffer).rgb
 
     # Warm-up: numba compiles its kernels on the first call of each pattern (cached on disk).
     for subarea in subareas:
@@ -131,9 +127,10 @@ def main(argv: list[str] | None = None) -> int:
 
     # What the frame holds after culling, backface elimination and clipping.
     trace: dict[str, Any] = {}
-    render_frame(database, channel, eyepoint, RenderOptions(samples="rgss4", filter="box", with_range=False), trace=trace)
+    render_frame(database, channel, eyepoint, RenderOptions(samples="rgss4", filter="box", with_range=False),
+                 trace=trace)
     screen = trace["screen"]
-    frame = {"polygons": screen.count,
+    frame = {"polygons": screen.polygon_count,
              "translucent_polygons": int((screen.opacity < 1.0).sum())}
 
     print(f"reference: {REFERENCE_PATTERN} at {width * supersample} x {height * supersample}, "
@@ -150,29 +147,29 @@ def main(argv: list[str] | None = None) -> int:
     images: dict[str, np.ndarray] = {}
     for subarea in subareas:
         for pattern in PATTERNS:
-            runs, walls = [], []
-            stats: dict[str, int] = {}
+            runs: list[FrameReport] = []
+            walls = []
             for _ in range(repeats):
-                times = StageTimes()
-                stats.clear()
+                report = FrameReport()
                 t0 = time.perf_counter()
-                rgb = render(pattern, subarea, times, stats)
+                rgb = render(pattern, subarea, report)
                 walls.append(time.perf_counter() - t0)
-                runs.append(times)
-            stages = stages or list(runs[0].seconds)
+                runs.append(report)
+            stages = stages or list(runs[0].stage_seconds)
             total = statistics.median(walls)
             err = error(rgb, reference)
-            if subarea == (DEFAULT_SUBAREA if DEFAULT_SUBAREA in subareas else subareas[0]):
+            if subarea == (default_subarea if default_subarea in subareas else subareas[0]):
                 images[pattern] = rgb.copy()
             rows.append({
                 "pattern": pattern, "samples": int(RenderOptions(samples=pattern).sample_offsets().shape[0]),
                 "subarea": subarea,
-                "stages_ms": {s: 1e3 * statistics.median(r.seconds.get(s, 0.0) for r in runs)
+                "stages_ms": {s: 1e3 * statistics.median(r.stage_seconds.get(s, 0.0) for r in runs)
                               for s in stages},
-                "stages_sum_ms": 1e3 * statistics.median(r.total for r in runs),
+                "stages_sum_ms": 1e3 * statistics.median(r.total_seconds for r in runs),
                 "total_ms": 1e3 * total, "fps": 1.0 / total,
                 "frame_ms": [1e3 * w for w in walls],
-                "translucent_dropped": stats.get("translucent_dropped"),
+                "translucent_dropped": runs[-1].counters.get("translucent_dropped"),
+                "frame_report": runs[-1].to_dict(),
                 **err,
             })
             print(f"  {pattern:6s} subarea {subarea:2d}: {1e3 * total:7.1f} ms", file=sys.stderr)
@@ -180,10 +177,10 @@ def main(argv: list[str] | None = None) -> int:
     # The sub-area size by measurement: fastest median frame at 4 samples.
     at4 = [r for r in rows if r["samples"] == 4]
     best = min(at4, key=lambda r: r["total_ms"])
-    default_sub = DEFAULT_SUBAREA if DEFAULT_SUBAREA in subareas else subareas[0]
+    default_sub = default_subarea if default_subarea in subareas else subareas[0]
     ours4 = next(r for r in at4 if r["subarea"] == default_sub)
     subarea_choice = {
-        "current_default": DEFAULT_SUBAREA,
+        "current_default": default_subarea,
         "fastest_at_4_samples": best["subarea"],
         "fastest_per_pattern": {p: min((r for r in rows if r["pattern"] == p),
                                        key=lambda r: r["total_ms"])["subarea"] for p in PATTERNS},
@@ -246,8 +243,7 @@ def main(argv: list[str] | None = None) -> int:
         "channel": {"width": width, "height": height,
                     "frustum_deg": [channel.left_deg, channel.right_deg, channel.bottom_deg,
                                     channel.top_deg]},
-        "render_options": {**base_kw, "filter": "box", "renderer": "subarea",
-                           "out_buffer_reused": out_buffer is not None},
+        "render_options": {**RenderOptions(**base_kw).to_mapping(), "out_buffer_reused": True},
         "reference": {
             "method": f"render_frame with {REFERENCE_PATTERN} on a {width * supersample} x "
                       f"{height * supersample} raster (same frustum), box-filtered "

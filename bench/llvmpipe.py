@@ -48,17 +48,17 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from channel_worker.pipeline.contract import View  # noqa: E402
-from channel_worker.pipeline.geometry.backface import eliminate_backfaces  # noqa: E402
-from channel_worker.pipeline.geometry.clip import clip  # noqa: E402
-from channel_worker.pipeline.geometry.cull import cull  # noqa: E402
-from channel_worker.pipeline.geometry.transform import to_eye  # noqa: E402
+from channel_worker.pipeline.contract import View
+from channel_worker.pipeline.geometry.backface import eliminate_backfaces
+from channel_worker.pipeline.geometry.clip import clip
+from channel_worker.pipeline.geometry.cull import cull
+from channel_worker.pipeline.geometry.transform import to_eye
 from channel_worker.pipeline.geometry.view import (
-    earth_dz_screen,  # noqa: E402
-    make_view,  # noqa: E402
+    earth_dz_screen,
+    make_view,
 )
-from channel_worker.pipeline.scene.database import Database  # noqa: E402
-from services.rig.frame import ChannelSpec, Eyepoint  # noqa: E402
+from channel_worker.pipeline.scene.database import Database
+from services.rig.frame import ChannelSpec, Eyepoint
 
 #: Environment that makes Mesa use llvmpipe on a surfaceless EGL display (no X, no GPU).
 MESA_ENV = {"LIBGL_ALWAYS_SOFTWARE": "1", "GALLIUM_DRIVER": "llvmpipe",
@@ -142,7 +142,7 @@ def gl_near(database: Database, view: View) -> float:
     A far-out near plane spends the 24 bits of depth where the scene is, and clips nothing.
     """
     polys = clip(eliminate_backfaces(to_eye(database, cull(database, view), view)), view)
-    nearest = float(polys.verts[:, 2].min()) if polys.count else view.far
+    nearest = float(polys.verts[:, 2].min()) if polys.polygon_count else view.far
     return float(np.clip(0.9 * nearest, view.near, 50.0))
 
 
@@ -387,7 +387,7 @@ def main(argv: list[str] | None = None) -> int:
             record = render_llvmpipe(database, approach_channel(), approach_eyepoint(),
                                      frames=args.frames, warmup=args.warmup, samples=args.samples,
                                      image_path=args.image)
-        except Exception as exc:  # noqa: BLE001 - any driver/context failure is a result here
+        except Exception as exc:
             record = {"available": False, "reason": f"{type(exc).__name__}: {exc}"}
     record["env"] = {k: os.environ.get(k) for k in (*MESA_ENV, "LP_NUM_THREADS")}
     text = json.dumps(record, indent=1)

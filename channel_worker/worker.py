@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass
 
 import grpc
 import numpy as np
+
 from ig.v1 import (
     compositor_pb2,
     compositor_pb2_grpc,
@@ -28,7 +29,6 @@ from ig.v1 import (
     worker_pb2,
     worker_pb2_grpc,
 )
-
 from services.rig.frame import ChannelSpec, Eyepoint
 from services.rig.grpc_util import (
     RPC_DEADLINE_S,
@@ -52,6 +52,8 @@ SERVICE = "ig.v1.ChannelWorkerService"
 
 #: Pause before subscribing again after a stream ended without finishing a run, seconds.
 _RESUBSCRIBE_S = 1.0
+#: Every how many frames the worker logs its frame report at INFO (5 s at 60 Hz).
+REPORT_EVERY = 300
 
 
 @dataclass
@@ -254,7 +256,8 @@ class ChannelWorker:
         number = frame.frame_number
         with self._lock:
             c = self.counters
-            if frame.run_id != c.run_id:
+            first_of_run = frame.run_id != c.run_id
+            if first_of_run:
                 self._last_taken = -1  # frame numbers start again with each run
             if self._last_taken >= 0 and number > self._last_taken + 1:
                 c.frames_skipped += number - self._last_taken - 1
@@ -269,7 +272,10 @@ class ChannelWorker:
             image = render_frame(self.database, self.channel, eyepoint_from_proto(frame.eyepoint),
                                  self.options, report=report, out=self._rgb)
             stats = report.counters
-            log.debug("frame %d: %s", number, report.format())
+            # The first frame of a run and every REPORT_EVERY-th after it go to the log at INFO, so a
+            # rig's logs show where each channel's time goes without drowning in per-frame lines.
+            level = logging.INFO if first_of_run or number % REPORT_EVERY == 0 else logging.DEBUG
+            log.log(level, "worker %s frame %d: %s", self.channel.name, number, report.format())
             with self._lock:
                 self.last_report = report
                 self.counters.translucent_dropped += stats.get("translucent_dropped", 0)

@@ -145,8 +145,8 @@ def _eyepoint_source(args: argparse.Namespace):
         return replay, replay.eyepoint_at, replay.duration_s
     from host_sim.flight import bundled_flight
 
-    flight = bundled_flight()
-    return None, flight.eyepoint_at, flight.duration_s
+    scripted = bundled_flight()
+    return None, scripted.eyepoint_at, scripted.duration_s
 
 
 def _log_summary(eyepoints) -> None:

@@ -14,11 +14,10 @@ import math
 import threading
 import time
 import uuid
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 from ig.v1 import frame_pb2
-
 from services.rig.frame import Eyepoint, check_eyepoint
 from services.rig.wire import eyepoint_to_proto
 
@@ -149,9 +148,9 @@ class FramePublisher:
         self.clock = clock
         self.alive = alive
         self.status = HostStatus(run_id=run_id or uuid.uuid4().hex[:12])
-        self.status.ack_timeouts = {c: 0 for c in self.channels}
-        self.status.ack_failures = {c: 0 for c in self.channels}
-        self.status.channel_absent = {c: 0 for c in self.channels}
+        self.status.ack_timeouts = dict.fromkeys(self.channels, 0)
+        self.status.ack_failures = dict.fromkeys(self.channels, 0)
+        self.status.channel_absent = dict.fromkeys(self.channels, 0)
         self._subs: list[Subscription] = []
         self._acks: dict[str, int] = {}
         self._lock = threading.Condition()
@@ -291,7 +290,7 @@ class FramePublisher:
 
     def _wait_for_subscribers(self, stop: threading.Event) -> None:
         started = time.monotonic()
-        heard = {c: started for c in self.channels}
+        heard = dict.fromkeys(self.channels, started)
         said = started
         while not stop.is_set():
             with self._lock:

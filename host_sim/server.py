@@ -7,8 +7,8 @@ import threading
 from typing import Any
 
 import grpc
-from ig.v1 import host_pb2, host_pb2_grpc
 
+from ig.v1 import host_pb2, host_pb2_grpc
 from services.rig.grpc_util import add_health, bind, make_server, set_not_serving
 
 from .publisher import ChannelTaken, FramePublisher, UnknownChannel

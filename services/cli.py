@@ -21,8 +21,8 @@ COMMANDS = {
     "render": ("channel_worker.cli_render", "render one frame of one channel to an image file",
                "Render one frame of one channel: .exr holds linear RGB and Z (range, metres), .png holds "
                "sRGB 8-bit."),
-    "host": ("host_sim.cli_host", "publish eyepoints frame-locked to the rig: the bundled flight, a flight model flown by "
-             "CAN/serial controls, or a replayed flight log",
+    "host": ("host_sim.cli_host", "publish eyepoints frame-locked to the rig: the bundled flight, a flight model "
+             "flown by CAN/serial controls, or a replayed flight log",
              "Serve HostService: publish frames at a fixed rate, waiting for every channel to acknowledge "
              "each frame (docs/frame-lock.md). Serves gRPC health; SIGTERM stops it cleanly."),
     "worker": ("channel_worker.cli_worker", "render one channel of the rig",
@@ -44,23 +44,28 @@ COMMANDS = {
 }
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The `ig` parser with every subcommand."""
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The `ig` parser: every subcommand listed, and the options of `command` (of every
+    subcommand when None). Only that subcommand's module is imported, so `ig host` does not
+    load the renderer (numba) it never uses."""
     parser = argparse.ArgumentParser(
         prog="ig", description="Distributed multi-channel image generator for flight simulators. "
                                "Exit codes: 0 ok, 1 failed, 2 bad input.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, (module_name, help_, description) in COMMANDS.items():
-        module = importlib.import_module(module_name)
         p = sub.add_parser(name, help=help_, description=description)
-        module.add_arguments(p)
-        p.set_defaults(run=module.run)
+        if command is None or name == command:
+            module = importlib.import_module(module_name)
+            module.add_arguments(p)
+            p.set_defaults(run=module.run)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Parse argv (default sys.argv[1:]) and run the subcommand; returns its exit code."""
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    args = build_parser(command if command in COMMANDS else None).parse_args(argv)
     return int(args.run(args) or 0)
 
 

@@ -8,6 +8,7 @@ The default rate was chosen by measurement: on the 2-core development machine th
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import signal
@@ -20,8 +21,8 @@ from pathlib import Path
 from typing import IO
 
 import grpc
-from ig.v1 import compositor_pb2, compositor_pb2_grpc
 
+from ig.v1 import compositor_pb2, compositor_pb2_grpc
 from services.rig.cli_common import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
@@ -50,7 +51,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--width", type=pixels, default=None, help="override every channel's width, pixels")
     parser.add_argument("--height", type=pixels, default=None, help="override every channel's height, pixels")
     parser.add_argument("--samples", default="4", help="samples per pixel, a count or a pattern name (default 4)")
-    parser.add_argument("--filter", default="box", help="pixel reconstruction filter: box, tent, gaussian (default box)")
+    parser.add_argument("--filter", default="box",
+                        help="pixel reconstruction filter: box, tent, gaussian (default box)")
     parser.add_argument("--exr-every", type=int, default=30,
                         help="also write a linear EXR every N frames (default 30; 0: never)")
     parser.add_argument("--out", default="out/demo",
@@ -97,7 +99,8 @@ class Processes:
     def start(self, name: str, argv: list[str], env: dict[str, str] | None = None) -> subprocess.Popen:
         """Start `python -m services.cli ARGV` as name; its output goes to LOG_DIR/name.log."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        out = None if self.verbose else open(self.log_dir / f"{name}.log", "w")
+        # Kept open for the process's life, closed by stop_all.
+        out = None if self.verbose else open(self.log_dir / f"{name}.log", "w")  # noqa: SIM115
         if out is not None:
             self._logs.append(out)
         proc = subprocess.Popen([sys.executable, "-m", "services.cli", *argv], stdout=out,
@@ -135,10 +138,8 @@ class Processes:
 
 
 def _signal_group(proc: subprocess.Popen, signum: int) -> None:
-    try:
+    with contextlib.suppress(ProcessLookupError):  # exited in the meantime
         os.killpg(proc.pid, signum)
-    except ProcessLookupError:
-        pass  # exited in the meantime
 
 
 def _progress(address: str) -> compositor_pb2.GetCompositorReportResponse | None:

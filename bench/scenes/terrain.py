@@ -42,14 +42,14 @@ import numpy as np
 # Runnable from a plain checkout too.
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from channel_worker.pipeline.background.terrain import surface_height  # noqa: E402
-from channel_worker.pipeline.scene.database import Database  # noqa: E402
-from channel_worker.pipeline.scene.load import parse_scene  # noqa: E402
-from channel_worker.pipeline.scene.terrain.build import build_terrain  # noqa: E402
-from channel_worker.pipeline.scene.terrain.bundled import cache_dir, recipe_key  # noqa: E402
-from channel_worker.pipeline.scene.terrain.database import TerrainDatabase  # noqa: E402
-from channel_worker.pipeline.scene.terrain.store import build_cached, load_terrain  # noqa: E402
-from services.rig.frame import Eyepoint  # noqa: E402
+from channel_worker.pipeline.background.terrain import surface_height
+from channel_worker.pipeline.scene.database import Database
+from channel_worker.pipeline.scene.load import parse_scene
+from channel_worker.pipeline.scene.terrain.build import build_terrain
+from channel_worker.pipeline.scene.terrain.bundled import cache_dir, recipe_key
+from channel_worker.pipeline.scene.terrain.database import TerrainDatabase
+from channel_worker.pipeline.scene.terrain.store import build_cached, load_terrain
+from services.rig.frame import Eyepoint
 
 FRACTAL_RECIPE: dict[str, Any] = {
     "generator": "bench/scenes/terrain.py ridged fBm/1",

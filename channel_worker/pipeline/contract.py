@@ -159,7 +159,7 @@ class Polygons:
             towards the eye; used to interpolate depth exactly. Faces declared to lie on
             another face (scene "on") carry that face's plane bit for bit.
         layer: (N,) int16 declared layer; where two features are at exactly the same depth
-            (coplanar, sharing one plane) the higher layer is seen. None means all 0.
+            (coplanar, sharing one plane) the higher layer is seen.
     """
 
     verts: np.ndarray
@@ -168,20 +168,16 @@ class Polygons:
     opacity: np.ndarray
     feature_id: np.ndarray
     plane: np.ndarray
-    layer: np.ndarray | None = None
+    layer: np.ndarray
 
-    def __post_init__(self) -> None:
-        if self.layer is None:
-            object.__setattr__(self, "layer", np.zeros(self.start.shape[0] - 1, np.int16))
-
-    def take(self, idx: np.ndarray, verts: np.ndarray, start: np.ndarray) -> "Polygons":
+    def take(self, idx: np.ndarray, verts: np.ndarray, start: np.ndarray) -> Polygons:
         """New polygons with the given vertices and the attributes of polygons idx."""
         return Polygons(verts=verts, start=start, colour=self.colour[idx],
                         opacity=self.opacity[idx], feature_id=self.feature_id[idx],
                         plane=self.plane[idx], layer=self.layer[idx])
 
     @property
-    def count(self) -> int:
+    def polygon_count(self) -> int:
         return int(self.start.shape[0] - 1)
 
 
@@ -208,7 +204,7 @@ class ScreenPolygons(NamedTuple):
     layer: np.ndarray
 
     @property
-    def count(self) -> int:
+    def polygon_count(self) -> int:
         return int(self.start.shape[0] - 1)
 
 

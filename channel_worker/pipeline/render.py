@@ -24,6 +24,7 @@ from .geometry.cull import cull
 from .geometry.project import project
 from .geometry.transform import to_eye
 from .geometry.view import frame_constants, make_view
+from .jit import thread_pool_size
 from .resolve.resolve import resolve
 from .scene.database import Database
 from .visibility.scanline import scanline_visibility
@@ -110,12 +111,11 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint,
 
 def _drawn(database: Database, options: RenderOptions) -> Database:
     """The database as the options draw it: without its haze or clouds when they are off."""
-    drop = {}
-    if not options.haze and database.haze is not None:
-        drop["haze"] = None
-    if not options.clouds and database.clouds is not None:
-        drop["clouds"] = None
-    return dataclasses.replace(database, **drop) if drop else database
+    haze = database.haze if options.haze else None
+    clouds = database.clouds if options.clouds else None
+    if haze is database.haze and clouds is database.clouds:
+        return database
+    return dataclasses.replace(database, haze=haze, clouds=clouds)
 
 
 @contextmanager
@@ -124,9 +124,9 @@ def _threads(threads: int) -> Iterator[None]:
     if threads == 0:
         yield
         return
-    if threads > numba.config.NUMBA_NUM_THREADS:
-        raise ValueError(f"threads: {threads} is more than the {numba.config.NUMBA_NUM_THREADS} "
-                         f"numba was started with (NUMBA_NUM_THREADS)")
+    if threads > thread_pool_size():
+        raise ValueError(f"threads: {threads} is more than the {thread_pool_size()} numba was started "
+                         f"with (NUMBA_NUM_THREADS)")
     previous = numba.get_num_threads()
     numba.set_num_threads(threads)
     try:

@@ -133,7 +133,7 @@ def depth_order(screen: ScreenPolygons, *, check: bool = True) -> np.ndarray:
         ValueError: two overlapping polygons whose depth order varies over their overlap or
             contradicts the centroid order: the frame has no single visibility order.
     """
-    n = screen.count
+    n = screen.polygon_count
     key = np.empty(n)
     for p in range(n):
         c = screen.fixed[screen.start[p]:screen.start[p + 1]].mean(axis=0) / SUBPIXEL

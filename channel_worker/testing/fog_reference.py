@@ -1,11 +1,11 @@
 """Reference optical depth of layered fog, for tests and benchmarks only: exact integration.
 
-The production fog (channel_worker/pipeline/fog.py, seed 004, US 5,535,374) approximates the
-optical depth of every ray with a per-frame table of average extinction, linearly
-interpolated. This module computes the same quantity exactly, ray by ray, so the table's error
-can be measured. It is written to be obviously right, not fast, and shares no code with
-fog.py: a reference that reused the production's integral (fog.cumulative) or its
-interpolation (fog.sigma_at) would repeat their mistakes instead of exposing them.
+The production fog (channel_worker/pipeline/fog/fog.py, the layered fog of US 5,535,374)
+approximates the optical depth of every ray with a per-frame table of average extinction,
+interpolated between entries. This module computes the same quantity exactly, ray by ray, so
+the table's error can be measured. It is written to be obviously right, not fast, and shares
+no code with fog.py: a reference that reused the production's integral (fog.cumulative) or
+its interpolation (fog.sigma_at) would repeat their mistakes instead of exposing them.
 
 The medium (world frame, metres)
 --------------------------------
@@ -70,8 +70,8 @@ class Strata:
 def strata(fog: Any = None, *, axis: Any = None, origin: Any = None, spacing: float | None = None,
            extinction: Any = None) -> Strata:
     """A Strata from plain arrays, or from any object with attributes axis, origin, spacing_m
-    (or spacing) and extinction (e.g. fog.Fog; read by name only, nothing of fog.py is used).
-    Keyword arrays override the object's."""
+    (or spacing) and extinction (e.g. scene.atmosphere.Fog; read by name only, nothing of fog.py
+    is used). Keyword arrays override the object's."""
     if fog is not None:
         axis = fog.axis if axis is None else axis
         origin = fog.origin if origin is None else origin
@@ -94,7 +94,7 @@ def strata(fog: Any = None, *, axis: Any = None, origin: Any = None, spacing: fl
     return Strata(a / norm, np.asarray(origin, np.float64).reshape(3), dx, ext)
 
 
-def sigma_at(st: Strata, s: np.ndarray) -> np.ndarray:
+def sigma_at(st: Strata, s: np.ndarray | float) -> np.ndarray:
     """Extinction at axis positions s (metres from plane 0): linear between planes, the end
     value beyond them."""
     s = np.asarray(s, np.float64)

@@ -25,7 +25,8 @@ PLATES = [
 
 def plates_model(place: Callable[[float, float, float], tuple]) -> dict:
     """One model of flat plates; place(u, v, distance) -> world point; faces towards the eye."""
-    verts, faces = [], []
+    verts: list[list[float]] = []
+    faces: list[dict] = []
     for outline, deg, (cu, cv), dist, colour, opacity in PLATES:
         c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
         pts = [place(cu + c * u - s * v, cv + s * u + c * v, dist) for u, v in outline]

@@ -1,8 +1,9 @@
 """Reference renderer for voxel terrain, for tests and benchmarks only: exact ray casting.
 
-The production terrain stage (a seed-002 radial column scanner) approximates what every sample
-of a channel sees of a TerrainDatabase. This module computes it exactly, one ray per sample, so
-the approximation can be measured. It is written to be obviously right, not fast.
+The production terrain (the background stage's radial column scan and warp, after JP H07-76990)
+approximates what every sample of a channel sees of a TerrainDatabase. This module computes it
+exactly, one ray per sample, so the approximation can be measured. It is written to be
+obviously right, not fast.
 
 The surface (world frame: x east, y north, z up, metres)
 ---------------------------------------------------------
@@ -466,7 +467,7 @@ def _eye_surface(g, x, y):
         return 0.0, -np.inf, False
     i = min(max(int(math.floor(x / s)), 0), g.nx - 1)
     j = min(max(int(math.floor(y / s)), 0), g.ny - 1)
-    page, vx, vy, u0, v0, w, h00, h10, h01, h11, k, top = _cell(g, i, j)
+    _page, _vx, _vy, _u0, _v0, _w, h00, h10, h01, h11, k, top = _cell(g, i, j)
     if k < 0:
         return 0.0, -np.inf, False
     ground = bilinear(h00, h10, h01, h11, (x - i * s) / s, (y - j * s) / s)

@@ -119,7 +119,7 @@ class SourceStatus:
 
     name: str
     accepted: int = 0
-    rejected: dict[str, int] = field(default_factory=lambda: {c: 0 for c in CAUSES})
+    rejected: dict[str, int] = field(default_factory=lambda: dict.fromkeys(CAUSES, 0))
     stale: bool = True
     last_input_age_s: float = -1.0
     last_rejection: str = ""
@@ -171,7 +171,7 @@ class ControlSource(ABC):
             before = self._status.accepted
         try:
             self._read(now_s)
-        except Exception as exc:  # noqa: BLE001 - any backend failure holds the values
+        except Exception as exc:
             if not self._failing:
                 self._failing = True
                 self._reject(Rejected("device_error", f"{type(exc).__name__}: {exc}"))
@@ -201,7 +201,7 @@ class ControlSource(ABC):
             return SourceStatus(s.name, s.accepted, dict(s.rejected), s.stale, age, s.last_rejection,
                                 dict(s.counters), dict(self._values))
 
-    def close(self) -> None:
+    def close(self) -> None:  # noqa: B027  (a default for sources that hold nothing to release)
         """Release the device or file."""
 
     def __enter__(self) -> ControlSource:

@@ -20,7 +20,7 @@ import itertools
 import logging
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO, cast
 
 from .base import ControlSource, Rejected
 from .can_bus import frame_value
@@ -117,7 +117,7 @@ class CanLogSource(ControlSource):
             try:
                 with can.LogReader(str(self.path)) as reader:
                     yield from reader
-            except Exception as exc:  # noqa: BLE001 - a damaged binary log ends here
+            except Exception as exc:
                 self._reject(Rejected("device_error", f"{self.path.name}: {type(exc).__name__}: {exc}; "
                                                       f"the rest of the log is skipped"))
             return
@@ -136,13 +136,14 @@ class CanLogSource(ControlSource):
 
             done = 0  # reader lines accounted for
             try:
-                for msg in reader_class(source):
+                # The readers need only iteration and close() of what they are given.
+                for msg in reader_class(cast(TextIO, source)):
                     self._skipped(lines, [line_index(j) for j in range(done, source.read - 1)])
                     done = source.read
                     yield msg
                 self._skipped(lines, [line_index(j) for j in range(done, source.read)])
                 return
-            except Exception as exc:  # noqa: BLE001 - any parse error is one bad record
+            except Exception as exc:
                 bad = line_index(source.read - 1)  # the line the reader was parsing
                 self._skipped(lines, [line_index(j) for j in range(done, source.read - 1)])
                 self._reject(Rejected("bad_frame", f"{self.path.name} line {bad + 1}: "

@@ -25,7 +25,8 @@ TIME, LON, LAT, MSL, PITCH, ROLL, HEADING = 0, 2, 3, 4, 9, 10, 11
 
 def read(path: Path) -> RawLog:
     """The samples of an FDR file."""
-    raw = RawLog(hpr=[])
+    hpr: list[tuple[float, float, float]] = []
+    raw = RawLog(hpr=hpr)
     with open(path, encoding="utf-8", errors="replace") as f:
         for line_no, line in enumerate(f, start=1):
             fields = [c.strip() for c in line.split(",")]
@@ -43,5 +44,5 @@ def read(path: Path) -> RawLog:
                 continue
             raw.times.append(t)
             raw.coords.append((lat, lon, msl * FT_M))
-            raw.hpr.append((heading, pitch, roll))
+            hpr.append((heading, pitch, roll))
     return raw

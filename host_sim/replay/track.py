@@ -55,7 +55,7 @@ class RawLog:
     coords: list[tuple[float, float, float]] = field(default_factory=list)
     geodetic: bool = True
     hpr: list[tuple[float, float, float]] | None = None
-    problems: dict[str, int] = field(default_factory=lambda: {p: 0 for p in PROBLEMS})
+    problems: dict[str, int] = field(default_factory=lambda: dict.fromkeys(PROBLEMS, 0))
     notes: list[str] = field(default_factory=list)
 
     def problem(self, cause: str, note: str) -> None:
@@ -177,7 +177,7 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
         problem("gap", f"{dt[i]:.1f} s without records after t={t[i]:.3f} s (gaps are over {threshold:.1f} s)")
 
     estimated = hpr is None
-    if estimated:
+    if hpr is None:
         hpr = attitude.estimate(t, position)
     quat = attitude.continuous(attitude.from_hpr(hpr))
     track = Track(t, position, quat, gap, _tangents(t, position, gap), estimated, problems, notes, origin,

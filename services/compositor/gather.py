@@ -12,10 +12,11 @@ import struct
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
+
 from ig.v1 import compositor_pb2, frame_pb2
 
 # Causes of an incomplete frame.
@@ -136,13 +137,13 @@ class FrameGatherer:
         self.run_id = ""
         self.frames_published = 0
         self.complete = 0
-        self.incomplete: Counter[str] = Counter({c: 0 for c in INCOMPLETE_CAUSES})
+        self.incomplete: Counter[str] = Counter(dict.fromkeys(INCOMPLETE_CAUSES, 0))
         self.late_images = 0
         self.rejected: Counter[str] = Counter()
         self.last_rejection = ""
         self.last_incomplete = ""
         self.render_times: dict[str, list[float]] = {c: [] for c in self.channels}
-        self.skipped: dict[str, int] = {c: 0 for c in self.channels}
+        self.skipped: dict[str, int] = dict.fromkeys(self.channels, 0)
 
     # --- inputs -----------------------------------------------------------------------------
     def on_published(self, frame: frame_pb2.Frame) -> None:

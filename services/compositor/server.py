@@ -6,13 +6,13 @@ import json
 import logging
 import threading
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import grpc
 from google.protobuf import json_format
-from ig.v1 import compositor_pb2, compositor_pb2_grpc, host_pb2, host_pb2_grpc
 
+from ig.v1 import compositor_pb2, compositor_pb2_grpc, host_pb2, host_pb2_grpc
 from services.rig.grpc_util import (
     RPC_DEADLINE_S,
     STREAM_DEADLINE_S,

@@ -90,7 +90,7 @@ def read_image(path: str | Path) -> tuple[np.ndarray, dict[str, AttrValue]]:
             raise OSError(f"{path}: {inp.geterror()}")
         attrs: dict[str, AttrValue] = {"channelnames": ",".join(spec.channelnames)}
         for param in spec.extra_attribs:
-            if param.name.startswith("ig:"):
+            if param.name.startswith("ig:") and isinstance(param.value, str | float | int):
                 attrs[param.name[3:]] = param.value
     finally:
         inp.close()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -38,7 +38,7 @@ class Rig:
     compositor_address: str
     channels: tuple[RigChannel, ...]
     source: str = ""
-    render: RenderOptions = RenderOptions()
+    render: RenderOptions = field(default_factory=RenderOptions)
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -56,7 +56,7 @@ class Rig:
     def channel_names(self) -> tuple[str, ...]:
         return tuple(ch.name for ch in self.channels)
 
-    def with_size(self, width: int, height: int) -> "Rig":
+    def with_size(self, width: int, height: int) -> Rig:
         """The same rig with every channel rendered at width x height pixels."""
         chans = tuple(replace(ch, spec=replace(ch.spec, width=width, height=height)) for ch in self.channels)
         return replace(self, channels=chans)
@@ -117,7 +117,7 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
     chans = doc.get("channels")
     if not isinstance(chans, list) or not chans:
         raise fail("channels", "expected at least one [[channels]] table")
-    out = []
+    out: list[RigChannel] = []
     for i, ch in enumerate(chans):
         where = f"channels[{i}]"
         if not isinstance(ch, dict):

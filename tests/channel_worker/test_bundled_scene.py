@@ -38,8 +38,8 @@ def _newell(points: np.ndarray) -> np.ndarray:
 # --- (a) the checked-in file is what the generator writes ---------------------------------------
 
 def test_checked_in_json_is_what_the_generator_writes():
-    assert build_airfield.OUTPUT == bundled_scene_path()
-    assert build_airfield.TERRAIN_OUTPUT == demo_scene_path()
+    assert bundled_scene_path() == build_airfield.OUTPUT
+    assert demo_scene_path() == build_airfield.TERRAIN_OUTPUT
     expected = modelling.render_json(build_airfield.build_scene())
     assert bundled_scene_path().read_text(encoding="utf-8") == expected, (
         "airfield.json is stale: run python -m channel_worker.data.build_airfield")

@@ -1,9 +1,11 @@
 """The worker renders the newest frame only and counts what it skipped; bad frames are refused."""
 
+import logging
+
 import numpy as np
-from ig.v1 import frame_pb2
 
 from channel_worker.worker import ChannelWorker, LatestFrame, encode_rgb_f16
+from ig.v1 import frame_pb2
 from services.rig.frame import ChannelSpec
 from services.rig.options import RenderOptions
 
@@ -73,9 +75,8 @@ def test_pixels_are_little_endian_half_rows_top_first():
 
 
 def test_status_rpc_reports_the_counters(make_scene, box_model_factory):
-    from ig.v1 import worker_pb2, worker_pb2_grpc
-
     from channel_worker.worker import SERVICE, WorkerStatusServicer
+    from ig.v1 import worker_pb2, worker_pb2_grpc
     from services.rig.grpc_util import add_health, check_health, make_channel, make_server
 
     w, _ = worker(make_scene, box_model_factory)
@@ -103,10 +104,9 @@ def test_status_rpc_reports_the_counters(make_scene, box_model_factory):
 def test_a_refused_subscription_ends_the_worker_with_the_reason(make_scene, box_model_factory):
     import threading
 
-    from ig.v1 import host_pb2_grpc
-
     from host_sim.publisher import FramePublisher
     from host_sim.server import HostServicer
+    from ig.v1 import host_pb2_grpc
     from services.rig.frame import Eyepoint
     from services.rig.grpc_util import make_server
 
@@ -151,3 +151,81 @@ def test_terrain_voxels_are_reported_per_frame_and_in_total(make_scene, box_mode
     status = w.status()
     assert status.terrain_voxels_last_frame == w.counters.terrain_voxels_last_frame
     assert status.terrain_voxels_total == w.counters.terrain_voxels_total
+
+
+def test_health_is_not_serving_until_the_worker_can_render(make_scene, box_model_factory):
+    """A worker serves health at once, NOT_SERVING while its kernels compile (the host knows it
+    is alive and waits), SERVING once its warm-up frame rendered; its status says the same and
+    names its options and its last frame's report."""
+    import socket
+    import threading
+    import time
+
+    import grpc
+
+    from channel_worker.worker import serve_worker
+    from services.rig.grpc_util import check_health
+    from services.rig.wire import options_from_proto
+
+    w, _ = worker(make_scene, box_model_factory)
+    release = threading.Event()
+    warm_up = w.warm_up
+
+    def slow_warm_up():
+        assert release.wait(60.0)
+        warm_up()
+
+    w.warm_up = slow_warm_up
+    stop = threading.Event()
+    w.run = lambda event: event.wait()  # no host: serve until stopped
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        address = f"127.0.0.1:{s.getsockname()[1]}"
+    server = threading.Thread(target=serve_worker, args=(w, address, stop))
+    server.start()
+
+    def health():
+        for _ in range(600):
+            try:
+                return check_health(address, timeout_s=1.0)
+            except grpc.RpcError:
+                time.sleep(0.05)
+        raise AssertionError("the worker never answered")
+
+    try:
+        assert health() == "NOT_SERVING"
+        status = w.status()
+        assert not status.ready and options_from_proto(status.render_options) == w.options
+        release.set()
+        for _ in range(600):
+            if health() == "SERVING":
+                break
+            time.sleep(0.05)
+        assert health() == "SERVING" and w.status().ready
+    finally:
+        release.set()
+        stop.set()
+        server.join()
+
+
+def test_the_status_reports_the_last_frames_stage_times(make_scene, box_model_factory):
+    from services.rig.wire import report_from_proto
+
+    w, _ = worker(make_scene, box_model_factory)
+    w._handle(frame(0))
+    report = report_from_proto(w.status().last_frame_report)
+    assert list(report.stage_seconds)[:2] == ["view", "cull"] and report.total_seconds > 0.0
+    assert "visibility" in report.stage_seconds and "entries_skipped_by_depth" in report.counters
+
+
+def test_the_log_shows_the_frame_report_at_the_start_of_a_run_and_every_few_seconds(
+        make_scene, box_model_factory, caplog):
+    from channel_worker.worker import REPORT_EVERY
+
+    w, _ = worker(make_scene, box_model_factory)
+    with caplog.at_level(logging.INFO, logger="ig.worker"):
+        for n in (0, 1, 2, REPORT_EVERY):
+            w._handle(frame(n))
+    info = [r.getMessage() for r in caplog.records if r.levelno == logging.INFO]
+    assert [m.split(":")[0] for m in info] == ["worker centre frame 0", f"worker centre frame {REPORT_EVERY}"]
+    assert "visibility" in info[0] and "total" in info[0]

@@ -13,15 +13,19 @@ def source(t):
     return Eyepoint.of(t, 2 * t, 10.0, (350 + 10 * t) % 360, 0.0, 0.0)
 
 
-def drain(sub):
+def drain(sub, ack=None):
+    """Every frame of a subscription until it closes; with ack=(publisher, channel), each
+    acknowledged as it comes."""
     frames = []
     while True:
-        f = sub.get(0.01)
+        f = sub.get(0.05 if ack else 0.01)
         if f is None:
             if sub.closed:
                 return frames
             continue
         frames.append(f)
+        if ack:
+            ack[0].ack(ack[1], f.frame_number)
 
 
 def run_with_channels(pub, channels, *, fail_on=None, skip_acks=()):
@@ -224,3 +228,39 @@ def test_a_slow_frame_does_not_make_the_host_burst_to_catch_up():
     slack = 1e-3  # between reading the schedule's clock and the control-sample clock
     for k in range(2, len(samples)):
         assert samples[k] - samples[1] >= (k - 1) * period - slack
+
+
+def test_a_worker_that_answers_its_health_is_waited_for_past_the_start_timeout():
+    # "b"'s worker is compiling its kernels: it answers (alive) but does not subscribe until
+    # long after the start timeout. The host waits for it; only then is frame 0 published.
+    answered = []
+    late_frames = []
+
+    def alive(channel):
+        answered.append(channel)
+        return True
+
+    pub = FramePublisher(source=source, channels=["a", "b"], rate_hz=1000.0, duration_s=0.002,
+                         sync_timeout_s=3600.0, start_timeout_s=0.2, alive=alive)
+
+    def late_worker():
+        time.sleep(1.0)  # five start timeouts
+        sub = pub.subscribe("w-b", "b")
+        late_frames.extend(f.frame_number for f in drain(sub, ack=(pub, "b")))
+
+    late = threading.Thread(target=late_worker)
+    late.start()
+    received, _ = run_with_channels(pub, ["a"])
+    late.join()
+    status = pub.snapshot()
+    assert "b" in answered and "a" not in answered  # only the missing channel is asked
+    assert status.channel_absent["b"] == 0  # b was waited for, not given up on
+    assert received["a"] == late_frames == list(range(pub.tick_count))
+
+
+def test_a_silent_worker_is_given_up_after_the_start_timeout():
+    pub = FramePublisher(source=source, channels=["a", "b"], rate_hz=1000.0, duration_s=0.002,
+                         sync_timeout_s=3600.0, start_timeout_s=0.3, alive=lambda channel: False)
+    received, _ = run_with_channels(pub, ["a"])
+    assert received["a"] == list(range(pub.tick_count))
+    assert pub.snapshot().channel_absent["b"] == pub.tick_count

@@ -4,10 +4,10 @@ import threading
 
 import grpc
 import pytest
-from ig.v1 import host_pb2, host_pb2_grpc
 
 from host_sim.publisher import FramePublisher
 from host_sim.server import SERVICE, HostServicer
+from ig.v1 import host_pb2, host_pb2_grpc
 from services.rig.frame import Eyepoint
 from services.rig.grpc_util import add_health, check_health, make_channel, make_server
 

@@ -63,7 +63,7 @@ def replay_run(tmp_path_factory):
     }
     try:
         for name, args in argv.items():
-            logs[name] = open(tmp / f"{name}.log", "w")
+            logs[name] = open(tmp / f"{name}.log", "w")  # noqa: SIM115  (closed when the run ends)
             procs[name] = start([*args, "--rig", str(rig_path)], logs[name])
         codes = wait_all(procs)
     finally:
@@ -86,7 +86,7 @@ def expected_replay(log):
 
 
 def test_the_replay_runs_to_its_end_and_every_process_exits_cleanly(replay_run):
-    assert replay_run["codes"] == {n: 0 for n in replay_run["codes"]}, replay_run["logs"]
+    assert replay_run["codes"] == dict.fromkeys(replay_run["codes"], 0), replay_run["logs"]
     replay = expected_replay(replay_run["log"])
     frames = int(round(replay.duration_s * RATE)) + 1  # (7 s - 1 s) / 2 at 10 Hz: 31 frames
     report = replay_run["report"]

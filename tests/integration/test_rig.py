@@ -17,6 +17,7 @@ import time
 import grpc
 import numpy as np
 import pytest
+
 from ig.v1 import (
     compositor_pb2,
     compositor_pb2_grpc,
@@ -26,7 +27,6 @@ from ig.v1 import (
     worker_pb2,
     worker_pb2_grpc,
 )
-
 from services.demo import local_rig
 from services.rig.grpc_util import check_health, make_channel
 from services.rig.image_io import read_image
@@ -71,7 +71,7 @@ def rig_run(tmp_path_factory):
     procs = {}
 
     def launch(name, argv):
-        logs[name] = open(tmp / f"{name}.log", "w")
+        logs[name] = open(tmp / f"{name}.log", "w")  # noqa: SIM115  (closed when the run ends)
         procs[name] = start(argv, logs[name])
 
     result = {"tmp": tmp, "out": out, "rig": rig}
@@ -145,7 +145,7 @@ def throw_bad_input(rig, tmp, rig_path):
 
 
 def test_every_process_reports_serving(rig_run):
-    assert rig_run["health"] == {n: "SERVING" for n in ("host", "compositor", "left", "centre", "right")}
+    assert rig_run["health"] == dict.fromkeys(("host", "compositor", "left", "centre", "right"), "SERVING")
 
 
 def test_every_frame_is_complete_and_stitched_from_the_same_frame(rig_run):
@@ -231,11 +231,11 @@ def test_sigterm_stops_every_service_cleanly(tmp_path):
         for name, argv in [("host", ["host", "--start-timeout", "3600"]),
                            ("compositor", ["compositor", "--out", str(out)]),
                            ("worker-left", ["worker", "--channel", "left", "--samples", "1"])]:
-            logs[name] = open(tmp_path / f"{name}.log", "w")
+            logs[name] = open(tmp_path / f"{name}.log", "w")  # noqa: SIM115  (closed when the run ends)
             procs[name] = start([*argv, "--rig", str(rig_path)], logs[name])
         addresses = {"host": rig.host_address, "compositor": rig.compositor_address,
                      "worker-left": rig.channels[0].address}
-        assert {n: wait_serving(addresses[n], procs[n]) for n in procs} == {n: "SERVING" for n in procs}
+        assert {n: wait_serving(addresses[n], procs[n]) for n in procs} == dict.fromkeys(procs, "SERVING")
         for proc in procs.values():
             proc.send_signal(signal.SIGTERM)
         codes = {n: p.wait(timeout=120) for n, p in procs.items()}

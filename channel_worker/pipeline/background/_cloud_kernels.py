@@ -1,7 +1,5 @@
-"""numba kernel of the cloud scan (see clouds.py): the coarse cloud pre-image.
-
-Cloud texel channels: premultiplied linear RGB (after haze and fog), opacity, and the range at
-which the texel's ray enters cloud (+inf where it meets none).
+"""numba kernel of the cloud scan (clouds.py): the coarse cloud pre-image (JP H07-76990's
+cloud frame buffer), in the CLOUD_CHANNELS layout of _groups.py.
 """
 
 from __future__ import annotations
@@ -14,7 +12,7 @@ from numba import njit, prange
 from channel_worker.pipeline.contract import F_ON, F_WORLD_AXIS
 from channel_worker.pipeline.fog.fog import fog_blend
 
-from ._terrain_kernels import ground_ray_span
+from ._scan_kernels import ground_ray_span
 from .haze import haze_amount
 
 #: A ray that has kept less than this of its light is opaque: its row stops integrating.
@@ -23,25 +21,40 @@ _OPAQUE_T = 0.004
 
 @njit(cache=True, inline="always")
 def _bilinear(a, iy, ix, u, v):
+    """Node grid a interpolated at local point (u, v) of cell (iy, ix)."""
     return ((1.0 - v) * ((1.0 - u) * a[iy, ix] + u * a[iy, ix + 1])
             + v * ((1.0 - u) * a[iy + 1, ix] + u * a[iy + 1, ix + 1]))
 
 
 @njit(cache=True, parallel=True)
-def scan_clouds_kernel(base, top, density, cell, eye, colour, base_shade, phi_lo, dphi, ncols,
-                       row_tan, row_inv_cos, row_sin, r_far, air, out):
-    # air: the air array (air.air_params): haze, then fog.
-    """One radial scan across the cloud grid per coarse column (azimuth phi_lo + (j + 1/2)
-    dphi), integrating every coarse row's ray (elevation tangent row_tan[i]) through the
-    clouds front to back.
+def scan_clouds_kernel(slabs, columns, eye, r_far, air, out):
+    """One radial scan across the cloud grid per coarse column (azimuth columns.phi_lo +
+    (j + 1/2) columns.dphi), integrating every coarse row's ray (elevation tangent
+    columns.row_tan[i]) through the clouds front to back.
 
     Inside a cell the slab (base, top) and the density are the bilinear interpolation of the
     cell's nodes, taken at the middle of the ray's ground segment across the cell (the data
-    are coarse and smooth; seed 002 wants blurry clouds with translucent edges).
+    are coarse and smooth; JP H07-76990 wants blurry clouds with translucent edges).
 
-    base, top, density: (ny + 1, nx + 1) node grids (world metres, 1/metres); eye: (3,) eye
-    position relative to node (0, 0) (x, y; metres, float64) and its world z.
+    Args:
+        slabs: the cloud database (CloudSlabs).
+        columns: the coarse columns and rows (CloudColumns).
+        eye: (3,) float64 the eye's x and y relative to node (0, 0) and its world z, metres.
+        r_far: ground range beyond which nothing is scanned, metres.
+        air: the frame's air array (haze, then fog; contract.py).
+        out: (ncols, nrows, CLOUD_CHANNELS) float32 the cloud texels.
     """
+    base = slabs.base
+    top = slabs.top
+    density = slabs.density
+    cell = slabs.cell
+    colour = slabs.colour
+    base_shade = slabs.base_shade
+    phi_lo = columns.phi_lo
+    dphi = columns.dphi
+    row_tan = columns.row_tan
+    row_inv_cos = columns.row_inv_cos
+    row_sin = columns.row_sin
     ny = base.shape[0] - 1
     nx = base.shape[1] - 1
     nrows = row_tan.shape[0]
@@ -49,7 +62,7 @@ def scan_clouds_kernel(base, top, density, cell, eye, colour, base_shade, phi_lo
     extent_y = ny * cell
     ex, ey, ez = eye[0], eye[1], eye[2]
     inv_cell = 1.0 / cell  # guard: the scene parser requires cell_m >= 1
-    for j in prange(ncols):
+    for j in prange(columns.ncols):
         phi = phi_lo + (j + 0.5) * dphi
         dx = math.sin(phi)
         dy = math.cos(phi)

@@ -5,6 +5,12 @@ through the haze (haze.py) and the layered fog (fog/), in one Background that th
 stage starts every sample from. The frame's air (air.py) is built here, once, and handed on in
 the Background to the stages that see polygons through it. A scene with none of terrain, haze,
 fog or clouds does not run this stage (render.py).
+
+In order: the air; the terrain's column scan into the zero-roll pre-image (terrain.py,
+_scan_kernels.py); the coarse cloud scan (clouds.py, _cloud_kernels.py); then the warp
+(_warp_kernels.py), which resamples both for every pixel and sample over the sky and the earth
+plane (_sky_kernels.py). Haze or fog alone skips the pre-image: the sky and the earth plane are
+painted per pixel (_sky_kernels.sky_earth_kernel).
 """
 
 from __future__ import annotations
@@ -23,11 +29,24 @@ from channel_worker.pipeline.contract import (
 from channel_worker.pipeline.scene.database import Database
 from services.rig.options import RenderOptions
 
-from ._terrain_kernels import PRE_CHANNELS, sky_earth_kernel, warp_kernel
+from ._groups import (
+    CLOUD_CHANNELS,
+    PRE_CHANNELS,
+    BackgroundArrays,
+    CloudImage,
+    Preimage,
+    SampleDepth,
+    SkyHaze,
+)
+from ._sky_kernels import sky_earth_kernel
+from ._warp_kernels import warp_kernel
 from .air import air_params
 from .clouds import scan_clouds
 from .haze import sky_haze_table
-from .terrain import WARP_BLOCK, PreimageGrid, preimage_grid, scan_terrain
+from .terrain import PreimageGrid, preimage_grid, scan_terrain
+
+#: Pixels per side of the warp's blocks (exact mapping at block corners, interpolated inside).
+WARP_BLOCK = 8
 
 
 def render_background(database: Database, view: View, frame: FrameConstants,
@@ -63,37 +82,37 @@ def render_background(database: Database, view: View, frame: FrameConstants,
         return background
     grid = preimage_grid(view)
     if terrain is None:
-        pre = np.zeros((1, 1, PRE_CHANNELS), np.float32)
-        full, phi_lo, dphi, theta0, dtheta = grid.full, grid.phi_lo, grid.span, grid.theta0, \
-            grid.theta1 - grid.theta0
+        pre = _no_terrain(grid)
     else:
         pre = scan_terrain(database, view, grid, air, options.terrain_bias, stats)
-        full, phi_lo, dphi, theta0, dtheta = grid.full, grid.phi_lo, grid.dphi, grid.theta0, \
-            grid.dtheta
     if bins is None:
-        tile, need = max(h, w), np.ones(1, np.bool_)
+        depth = SampleDepth(float(database.terrain_margin_m), max(h, w), np.ones(1, np.bool_))
     else:
-        tile, need = int(bins.size), np.ascontiguousarray(np.diff(bins.start) > 0, np.bool_)
-    cloud_on = database.clouds is not None
-    if cloud_on:
-        cloud_pre, col_ratio, row_ratio = scan_clouds(database, view, grid, air)
-        cloud = np.empty((h, w, 5), np.float32)
+        depth = SampleDepth(float(database.terrain_margin_m), int(bins.size),
+                            np.ascontiguousarray(np.diff(bins.start) > 0, np.bool_))
+    if database.clouds is not None:
+        clouds = scan_clouds(database, view, grid, air)
+        cloud = np.empty((h, w, CLOUD_CHANNELS), np.float32)
         if terrain is None:
             # The warp's coordinates are then those of the one-texel stand-in pre-image.
-            col_ratio, row_ratio = col_ratio / grid.ncols, row_ratio / grid.nrows
+            clouds = clouds._replace(col_ratio=clouds.col_ratio / grid.ncols,
+                                     row_ratio=clouds.row_ratio / grid.nrows)
     else:
-        cloud_pre, col_ratio, row_ratio = np.zeros((1, 1, 5), np.float32), 1.0, 1.0
+        clouds = CloudImage(False, np.zeros((1, 1, CLOUD_CHANNELS), np.float32), 1.0, 1.0)
         cloud = no_cloud()
-    rgb = np.empty((h, w, 3), np.float32)
-    inv_z = np.empty((h, w, s), np.float32)
-    range_m = np.empty((h, w), np.float32)
-    warp_kernel(pre, full, phi_lo, dphi, theta0, dtheta, frame.world_to_eye, frame.mapping,
-                frame.offsets, w, h, frame.horizon, frame.dz_row, frame.height_above, frame.sky,
-                frame.earth, air, *_sky_haze(air, grid), float(database.terrain_margin_m),
-                WARP_BLOCK, cloud_on, cloud_pre, col_ratio, row_ratio, tile, need, rgb, inv_z,
-                range_m, cloud)
+    out = BackgroundArrays(np.empty((h, w, 3), np.float32), np.empty((h, w, s), np.float32),
+                           np.empty((h, w), np.float32), cloud)
+    warp_kernel(frame, pre, air, _sky_haze(air, grid), clouds, depth, WARP_BLOCK, out)
     counters.update(stats)
-    return Background(True, rgb, inv_z, range_m, cloud_on, cloud, air)
+    return Background(True, out.rgb, out.inv_z, out.range_m, clouds.on, out.cloud, air)
+
+
+def _no_terrain(grid: PreimageGrid) -> Preimage:
+    """The pre-image of a view without terrain: one empty texel spanning the whole grid, so the
+    warp paints the sky and the earth plane (and lays the clouds over them) alone."""
+    texels = np.zeros((1, 1, PRE_CHANNELS), np.float32)
+    return Preimage(texels, grid.full, grid.phi_lo, grid.span, grid.theta0,
+                    grid.theta1 - grid.theta0, texels.shape[0] * grid.span)
 
 
 def _sky_and_earth(frame: FrameConstants, air: np.ndarray) -> Background:
@@ -102,14 +121,14 @@ def _sky_and_earth(frame: FrameConstants, air: np.ndarray) -> Background:
     h, w, s = frame.height, frame.width, frame.offsets.shape[0]
     rgb = np.empty((h, w, 3), np.float32)
     range_m = np.empty((h, w), np.float32)
-    sky_earth_kernel(frame.mapping, frame.offsets, w, h, frame.horizon, frame.dz_row,
-                     frame.height_above, frame.sky, frame.earth, air, rgb, range_m)
+    sky_earth_kernel(frame, air, rgb, range_m)
     return Background(True, rgb, np.zeros((h, w, s), np.float32), range_m, False, no_cloud(), air)
 
 
-def _sky_haze(air: np.ndarray, grid: PreimageGrid) -> tuple[np.ndarray, float, float]:
+def _sky_haze(air: np.ndarray, grid: PreimageGrid) -> SkyHaze:
     """Haze of the sky (range infinite) at the centre elevation of each of the view's
-    pre-image rows: (table, elevation of row 0's lower edge, row height), radians."""
+    pre-image rows (a zero stand-in without haze)."""
     if air[0] == 0.0:
-        return np.zeros(1), grid.theta0, grid.theta1 - grid.theta0
-    return sky_haze_table(air, grid.theta0, grid.dtheta, grid.nrows), grid.theta0, grid.dtheta
+        return SkyHaze(np.zeros(1), grid.theta0, grid.theta1 - grid.theta0)
+    return SkyHaze(sky_haze_table(air, grid.theta0, grid.dtheta, grid.nrows), grid.theta0,
+                   grid.dtheta)

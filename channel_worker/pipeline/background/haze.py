@@ -1,6 +1,6 @@
-"""Haze of seed 002: the share of haze colour in a pixel as a function of range and pitch.
+"""Haze of JP H07-76990: the share of haze colour in a pixel as a function of range and pitch.
 
-Seed 002 gives ``Iout = Iorig (1 - H) + I_H H`` with ``H = f(R_S, Vis, theta)`` (slant range,
+JP H07-76990 gives ``Iout = Iorig (1 - H) + I_H H`` with ``H = f(R_S, Vis, theta)`` (slant range,
 half-haze distance, pitch of the pixel's ray) limited to [0, 1]. The function used here is the
 one of an exponential atmosphere: extinction ``beta(z) = ln 2 / Vis * exp(-(z - z0) / Hs)``
 (Vis is the distance over which a horizontal path at height z0 is half haze; Hs the scale

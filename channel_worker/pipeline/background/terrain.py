@@ -6,16 +6,16 @@
    ground grid outward from the column's start point one grid line at a time, at the level
    whose voxels are one to two pixels wide at that range (coarser each time the range
    doubles), and integrates what rises above the horizon of what it has seen into the rows
-   by the fraction of each row it covers (_terrain_kernels.scan_kernel). Because each column
-   is an exact vertical plane, occlusion by elevation angle is exact at any pitch.
+   by the fraction of each row it covers (_scan_kernels.scan_kernel). Because each column is
+   an exact vertical plane, occlusion by elevation angle is exact at any pitch.
 2. Every output sample then takes its value from the pre-image at its exact azimuth and
-   elevation, bilinearly: this one inverse mapping is seed 002's rotation by the roll angle
-   with anti-aliased resampling and its vertical perspective correction, exact for wide and
-   off-axis channels, so terrain seams between channels line up like polygon seams
-   (_terrain_kernels.warp_kernel).
+   elevation, bilinearly (background.py, _warp_kernels.warp_kernel): this one inverse
+   mapping is JP H07-76990's rotation by the roll angle with anti-aliased resampling and its
+   vertical perspective correction, exact for wide and off-axis channels, so terrain seams
+   between channels line up like polygon seams.
 
-Haze (seed 002) and fog (seed 004) are applied to every terrain texel, the sky, the earth
-and the clouds here, with the one air array the polygon kernels use too (air.air_params).
+The haze (JP H07-76990) and the layered fog (US 5,535,374) are applied to every terrain
+texel here, with the one air array the polygon kernels use too (air.air_params).
 """
 
 from __future__ import annotations
@@ -26,13 +26,13 @@ import numpy as np
 
 from channel_worker.pipeline.contract import View
 from channel_worker.pipeline.fog.fog import average_floor
-from channel_worker.pipeline.geometry.view import (
-    screen_mapping,
-)
+from channel_worker.pipeline.geometry.view import screen_mapping
 from channel_worker.pipeline.scene.database import Database
+from channel_worker.pipeline.scene.terrain.database import TerrainDatabase
 from services.rig.colour import srgb_to_linear
 
-from ._terrain_kernels import PRE_CHANNELS, fill_skipped, scan_kernel
+from ._groups import PRE_CHANNELS, ColumnGrid, Preimage, ScanLimits, VoxelPages
+from ._scan_kernels import fill_skipped, scan_kernel
 from .haze import OPAQUE_TAU, beta_at
 
 #: Pre-image texels per output pixel along each axis, at the channel's centre of projection.
@@ -46,7 +46,7 @@ WARP_BLOCK = 8
 
 #: An eye closer than this above the terrain surface (or below it) is moved up to it for the
 #: terrain scan (metres): the picture stays defined instead of turning inside out. Counted in
-#: stats["terrain_eye_clamped"].
+#: the counter "terrain_eye_clamped".
 MIN_CLEARANCE_M = 0.01
 
 #: sRGB-encoded byte -> linear, for the database's uint8 colours.
@@ -149,17 +149,86 @@ def _pole_inside(view: View, sign: float, margin: float) -> bool:
             and view.tan_bottom - pad <= ty <= view.tan_top + pad)
 
 
-def scan_terrain(database: Database, view: View, grid: PreimageGrid, air: np.ndarray, level_bias: int,
-          stats: dict) -> np.ndarray:
-    """Run the column scans; the pre-image (ncols, nrows, PRE_CHANNELS) float32."""
+def scan_terrain(database: Database, view: View, grid: PreimageGrid, air: np.ndarray,
+                 level_bias: int, counters: dict[str, int]) -> Preimage:
+    """Run the column scans of database.terrain over the view's pre-image grid.
+
+    Args:
+        database: the scene; database.terrain is not None.
+        view: the channel's view for this frame.
+        grid: the view's pre-image grid (preimage_grid).
+        air: the frame's air array (air.air_params).
+        level_bias: voxels are kept 2**bias to 2**(bias + 1) pixels wide
+            (RenderOptions.terrain_bias).
+        counters: receives "terrain_voxels" (voxels visited), "terrain_columns",
+            "terrain_rows", and "terrain_eye_clamped" 1 when the eye was moved up to
+            MIN_CLEARANCE_M above the surface.
+
+    Returns:
+        The pre-image, texels (grid.ncols, grid.nrows, PRE_CHANNELS) float32.
+
+    Raises:
+        ValueError: the scene has no terrain.
+    """
     terrain = database.terrain
+    if terrain is None:
+        raise ValueError("scan_terrain: the scene has no terrain")
     eye = np.asarray(view.eye, np.float64) - terrain.origin  # float64 before anything else
     ground = surface_height(terrain, float(eye[0]), float(eye[1]))
     if ground is not None and eye[2] < ground + MIN_CLEARANCE_M:
         eye[2] = ground + MIN_CLEARANCE_M
-        stats["terrain_eye_clamped"] = 1
+        counters["terrain_eye_clamped"] = 1
+    pre = np.empty((grid.ncols, grid.nrows, PRE_CHANNELS), np.float32)
+    visits = np.zeros(grid.ncols, np.int64)
+    limits = ScanLimits(grid.first_row, eye, _level_switch(terrain, view, eye, level_bias),
+                        _far_range(database, terrain, view))
+    scan_kernel(voxel_pages(terrain), column_grid(grid), limits, air, pre, visits)
+    if grid.first_row[0] > 0:  # some columns skipped rows
+        fill_skipped(pre, grid.first_row, grid.full)
+    counters["terrain_voxels"] = int(visits.sum())
+    counters["terrain_columns"] = grid.ncols
+    counters["terrain_rows"] = grid.nrows
+    return Preimage(pre, grid.full, grid.phi_lo, grid.dphi, grid.theta0, grid.dtheta,
+                    pre.shape[0] * grid.dphi)
+
+
+def voxel_pages(terrain: TerrainDatabase) -> VoxelPages:
+    """The database's pages, page tables and patterns as the column scan reads them."""
     level_nx = np.array([terrain.level_size(lv)[0] for lv in range(terrain.levels)], np.int64)
     level_ny = np.array([terrain.level_size(lv)[1] for lv in range(terrain.levels)], np.int64)
+    log2_page = int(terrain.page_size).bit_length() - 1
+    patterns = terrain.patterns
+    n_pat = max(len(patterns), 1)
+    n_band = max([len(p.top_m) for p in patterns], default=1)
+    pat_top = np.zeros((n_pat, n_band), np.float32)
+    pat_rgb = np.zeros((n_pat, n_band, 3), np.float32)
+    pat_bands = np.ones(n_pat, np.int64)
+    for k, p in enumerate(patterns):
+        pat_top[k, :len(p.top_m)] = p.top_m
+        pat_rgb[k, :len(p.top_m)] = _SRGB_LUT[np.asarray(p.rgb, np.uint8)]
+        pat_bands[k] = len(p.top_m)
+    nx, ny = terrain.extent_m
+    return VoxelPages(terrain.z, terrain.rgb, terrain.pattern, terrain.page_table,
+                      terrain.table_offset, terrain.pages_x, terrain.pages_y, log2_page, level_nx,
+                      level_ny, float(terrain.spacing_m), float(nx), float(ny),
+                      float(terrain.z_max), pat_top, pat_rgb, pat_bands, _SRGB_LUT)
+
+
+def column_grid(grid: PreimageGrid) -> ColumnGrid:
+    """The pre-image grid as the column scan walks it, with each row's centre and top
+    elevation's cosine and sine."""
+    centres = grid.theta0 + (np.arange(grid.nrows) + 0.5) * grid.dtheta
+    row_cs = np.ascontiguousarray(np.stack([np.cos(centres), np.sin(centres)], 1))
+    tops = grid.theta0 + (np.arange(grid.nrows) + 1.0) * grid.dtheta
+    top_cs = np.ascontiguousarray(np.stack([np.cos(tops), np.sin(tops)], 1))
+    return ColumnGrid(grid.phi_lo, grid.dphi, grid.ncols, grid.theta0, grid.dtheta, grid.nrows,
+                      row_cs, top_cs)
+
+
+def _level_switch(terrain: TerrainDatabase, view: View, eye: np.ndarray,
+                  level_bias: int) -> np.ndarray:
+    """(levels,) ground range (metres) where level L + 1 takes over from level L (inf for the
+    coarsest); eye relative to the database origin."""
     # Level L + 1 takes over where a level-L voxel has shrunk to 2**bias pixels (a level-L + 1
     # voxel is then 2**(bias + 1) pixels wide), i.e. at slant range spacing 2**(L - bias) /
     # pixel angle: voxels stay 2**bias to 2**(bias + 1) pixels wide, one level coarser each
@@ -171,6 +240,12 @@ def scan_terrain(database: Database, view: View, grid: PreimageGrid, air: np.nda
     for lv in range(terrain.levels - 1):
         slant = terrain.spacing_m * 2.0 ** (lv - level_bias) / pixel  # guard: pixel > 0
         r_switch[lv] = math.sqrt(max(slant * slant - dz_min * dz_min, 0.0))
+    return r_switch
+
+
+def _far_range(database: Database, terrain: TerrainDatabase, view: View) -> float:
+    """Ground range (metres) beyond which the scan of terrain (database.terrain) sees nothing:
+    the far plane, or where all is haze or fog (optical depth OPAQUE_TAU)."""
     r_far = float(view.far)
     if database.haze is not None:
         # Beyond optical depth OPAQUE_TAU all is haze; the air along any path to the terrain
@@ -189,39 +264,10 @@ def scan_terrain(database: Database, view: View, grid: PreimageGrid, air: np.nda
         floor = average_floor(fog, view.eye, float(d.min()), float(d.max()))
         if floor > 0.0:
             r_far = min(r_far, OPAQUE_TAU / floor)  # guard: floor > 0
-    log2_page = int(terrain.page_size).bit_length() - 1
-    patterns = terrain.patterns
-    n_pat = max(len(patterns), 1)
-    n_band = max([len(p.top_m) for p in patterns], default=1)
-    pat_top = np.zeros((n_pat, n_band), np.float32)
-    pat_rgb = np.zeros((n_pat, n_band, 3), np.float32)
-    pat_bands = np.ones(n_pat, np.int64)
-    for k, p in enumerate(patterns):
-        pat_top[k, :len(p.top_m)] = p.top_m
-        pat_rgb[k, :len(p.top_m)] = _SRGB_LUT[np.asarray(p.rgb, np.uint8)]
-        pat_bands[k] = len(p.top_m)
-    centres = grid.theta0 + (np.arange(grid.nrows) + 0.5) * grid.dtheta
-    row_cs = np.ascontiguousarray(np.stack([np.cos(centres), np.sin(centres)], 1))
-    tops = grid.theta0 + (np.arange(grid.nrows) + 1.0) * grid.dtheta
-    top_cs = np.ascontiguousarray(np.stack([np.cos(tops), np.sin(tops)], 1))
-    pre = np.empty((grid.ncols, grid.nrows, PRE_CHANNELS), np.float32)
-    visits = np.zeros(grid.ncols, np.int64)
-    nx, ny = terrain.extent_m
-    scan_kernel(terrain.z, terrain.rgb, terrain.pattern, terrain.page_table, terrain.table_offset,
-                terrain.pages_x, terrain.pages_y, log2_page, level_nx, level_ny,
-                float(terrain.spacing_m), float(nx), float(ny), float(terrain.z_max), pat_top,
-                pat_rgb, pat_bands, _SRGB_LUT, eye, grid.phi_lo, grid.dphi, grid.ncols,
-                grid.theta0, grid.dtheta, grid.nrows, r_switch, r_far, air, row_cs, top_cs,
-                grid.first_row, pre, visits)
-    if grid.first_row[0] > 0:  # some columns skipped rows
-        fill_skipped(pre, grid.first_row, grid.full)
-    stats["terrain_voxels"] = int(visits.sum())
-    stats["terrain_columns"] = grid.ncols
-    stats["terrain_rows"] = grid.nrows
-    return pre
+    return r_far
 
 
-def surface_height(terrain, x: float, y: float) -> float | None:
+def surface_height(terrain: TerrainDatabase, x: float, y: float) -> float | None:
     """Terrain height (metres above terrain.origin[2]) at database-relative ground point (x, y),
     from the finest level that has it; None outside the database."""
     ex, ny_m = terrain.extent_m

@@ -29,7 +29,7 @@ def setup_edges(screen: ScreenPolygons, width: int, height: int) -> Edges:
     """
     fixed = screen.fixed
     start = screen.start
-    n = screen.count
+    n = screen.polygon_count
     nv = fixed.shape[0]
     if n == 0:
         z = np.zeros(0, np.int64)

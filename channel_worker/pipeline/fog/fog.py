@@ -1,4 +1,4 @@
-"""Non-homogeneous layered fog of seed 004 (US 5,535,374): parallel strata of extinction.
+"""Non-homogeneous layered fog of US 5,535,374: parallel strata of extinction.
 
 The scene defines the fog in world space (docs/scene-format.md "fog") as the extinction
 coefficient sigma_k (1/metres) at equally spaced parallel sample planes: plane k lies at
@@ -23,8 +23,8 @@ only the interpolation between entries is approximate), with sigma there.
 Per sample (fog_depth): d addresses the table. Between two entries the integral I(d) = A(d) d
 is interpolated as a cubic from its values and slopes (sigma) at both: exact where sigma is
 linear across the cell, so only the cells holding a sample plane (a kink) are approximate,
-and the error falls with the square of the table spacing. The seed's linear interpolation of
-the average, at its spacing, misses by up to 0.10 in transmission on the bench's fog, this at
+and the error falls with the square of the table spacing. US 5,535,374's linear interpolation
+of the average, at its spacing, misses by up to 0.10 in transmission on the bench's fog, this at
 the default by 8.4e-4 (bench/README.md "Fog"): a grazing ray multiplies any error in I by
 1 / |c|, and the average of a layer seen from afar falls like 1 / d, which no straight line
 follows. The slopes are limited so the cubic never turns back (and in the eye's two cells,
@@ -114,7 +114,7 @@ def sigma_at(fog: Fog, s: np.ndarray | float) -> np.ndarray:
 
 def average_floor(fog: Fog, eye: np.ndarray, d_lo: float, d_hi: float) -> float:
     """A lower bound on the average extinction A(d) from the eye to any axis distance d in
-    [d_lo, d_hi] (metres; the terrain stage stops scanning where range x bound passes opaque).
+    [d_lo, d_hi] (metres; the terrain scan stops where range x bound passes opaque).
 
     Exact over cells of a fine grid: in a cell [a, b] with 0 < a the integral grows, so
     A(d) = I(d) / d >= I(a) / b (likewise below the eye); a cell holding the eye averages sigma
@@ -174,7 +174,7 @@ def fog_params(fog: Fog | None, view: View | None, eye: np.ndarray | None = None
         if view is None:
             raise ValueError("fog_params: give a view or an eye position")
         eye = view.eye
-    # Seed 004: the eyepoint's place in the strata is the dot product of the eye-to-origin
+    # US 5,535,374: the eyepoint's place in the strata is the dot product of the eye-to-origin
     # vector with the axis (here negated: distance of the eye above plane 0), in float64.
     h_e = -float(np.dot(fog.origin - np.asarray(eye, np.float64), fog.axis))
     sig = fog.extinction

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from numba import njit
 
+from channel_worker.pipeline.contract import SUBPIXEL
+
 
 @njit(cache=True)
-def project_kernel(verts, start, sx_scale, sx_offset, sy_scale, sy_offset, subpixel, max_x, max_y,
-                   out_fixed, out_start, out_src):
+def project_kernel(verts, start, mapping, limits, out):
     """Project, snap to the sub-pixel grid, drop repeated vertices and empty polygons.
 
     Screen x = (x / z) * sx_scale + sx_offset, y likewise. Guard: every z is >= the near
@@ -15,8 +16,14 @@ def project_kernel(verts, start, sx_scale, sx_offset, sy_scale, sy_offset, subpi
     the raster ([0, max]) because clipping leaves them on the boundary only to rounding.
     Output polygons are wound so that their doubled signed area is negative in y-down screen
     coordinates, the orientation the rasterizer's edge functions assume (interior > 0).
+    mapping: (sx_scale, sx_offset, sy_scale, sy_offset) (view.screen_mapping); limits:
+    (max_x, max_y) in 1/SUBPIXEL units; out: (fixed (Nv, 2), start (N + 1,), src (N,)).
     Returns (polygons out, vertices out).
     """
+    sx_scale, sx_offset, sy_scale, sy_offset = mapping[0], mapping[1], mapping[2], mapping[3]
+    max_x, max_y = limits
+    out_fixed, out_start, out_src = out
+    subpixel = float(SUBPIXEL)
     n_poly = start.shape[0] - 1
     n_out = 0
     v_out = 0
@@ -45,7 +52,8 @@ def project_kernel(verts, start, sx_scale, sx_offset, sy_scale, sy_offset, subpi
         area2 = 0
         for i in range(m):
             k = i + 1 if i + 1 < m else 0
-            area2 += out_fixed[first + i, 0] * out_fixed[first + k, 1] - out_fixed[first + k, 0] * out_fixed[first + i, 1]
+            area2 += (out_fixed[first + i, 0] * out_fixed[first + k, 1]
+                      - out_fixed[first + k, 0] * out_fixed[first + i, 1])
         if area2 == 0:
             continue
         if area2 > 0:

@@ -2,7 +2,24 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
+import numpy as np
 from numba import njit
+
+
+class DrawnInstances(NamedTuple):
+    """Per drawn instance: model -> eye and model -> world rotations (n, 3, 3), its origin in
+    the eye frame (n, 3), and where its model's face vertices (corner_base, corner_count) and
+    faces (face_base, face_count) lie in the FaceTable."""
+
+    to_eye_rot: np.ndarray
+    world_rot: np.ndarray
+    rel: np.ndarray
+    corner_base: np.ndarray
+    corner_count: np.ndarray
+    face_base: np.ndarray
+    face_count: np.ndarray
 
 
 @njit(cache=True)
@@ -16,12 +33,17 @@ def _apply(rot, k, v, rel):
 
 
 @njit(cache=True)
-def transform_kernel(to_eye_rot, world_rot, rel, corner_base, corner_count, face_base, face_count,
-                     corner_xyz, normal, plane_xyz, out_verts, out_normal, out_world_z_dot,
-                     out_d, sun):
-    """Per drawn instance k: its face vertices to eye coordinates, its face normals to eye and
-    world frames (the world one dotted with the sun), and each face's plane offset d = n . p
-    from its plane point transformed exactly like a vertex."""
+def transform_kernel(drawn, table, sun, out):
+    """Per drawn instance k (DrawnInstances): its face vertices to eye coordinates, its face
+    normals to eye and world frames (the world one dotted with the sun, a (3,) unit vector),
+    and each face's plane offset d = n . p from its plane point transformed exactly like a
+    vertex. table: the database's FaceTable. out: (vertices (C, 3), normals (F, 3), sun dot
+    (F,), d (F,)), in drawn order."""
+    to_eye_rot, world_rot, rel = drawn.to_eye_rot, drawn.world_rot, drawn.rel
+    corner_base, corner_count = drawn.corner_base, drawn.corner_count
+    face_base, face_count = drawn.face_base, drawn.face_count
+    corner_xyz, normal, plane_xyz = table.corner_xyz, table.normal, table.plane_xyz
+    out_verts, out_normal, out_world_z_dot, out_d = out
     zero = (0.0, 0.0, 0.0)
     v_out = 0
     f_out = 0

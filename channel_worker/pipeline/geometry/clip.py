@@ -28,7 +28,7 @@ def clip(polys: Polygons, view: View) -> Polygons:
     any side plane sees it (a point behind the eye would otherwise pass the side tests with its
     signs flipped). Output polygons keep their attributes; empty ones are dropped.
     """
-    n = polys.count
+    n = polys.polygon_count
     planes = frustum_planes(view)
     cap = polys.verts.shape[0] + n * (planes.shape[0] + 1)
     out_verts = np.empty((cap, 3))

@@ -19,13 +19,14 @@ def project(polys: Polygons, view: View) -> ScreenPolygons:
     d < 0 strictly, so the divisions by d are safe.
     """
     sx_scale, sx_off, sy_scale, sy_off = screen_mapping(view)
-    n = polys.count
+    n = polys.polygon_count
     out_fixed = np.empty((polys.verts.shape[0], 2), np.int64)
     out_start = np.empty(n + 1, np.int64)
     out_src = np.empty(n, np.int64)
-    n_out, v_out = project_kernel(np.ascontiguousarray(polys.verts), polys.start, sx_scale, sx_off,
-                                  sy_scale, sy_off, float(SUBPIXEL), view.width * SUBPIXEL,
-                                  view.height * SUBPIXEL, out_fixed, out_start, out_src)
+    n_out, v_out = project_kernel(np.ascontiguousarray(polys.verts), polys.start,
+                                  np.array([sx_scale, sx_off, sy_scale, sy_off]),
+                                  (view.width * SUBPIXEL, view.height * SUBPIXEL),
+                                  (out_fixed, out_start, out_src))
     src = out_src[:n_out]
     plane = polys.plane[src]
     nx, ny, nz, d = plane[:, 0], plane[:, 1], plane[:, 2], plane[:, 3]

@@ -7,7 +7,7 @@ import numpy as np
 from channel_worker.pipeline.contract import DrawList, Polygons, View
 from channel_worker.pipeline.scene.database import Database
 
-from ._transform_kernels import transform_kernel
+from ._transform_kernels import DrawnInstances, transform_kernel
 
 
 def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
@@ -39,10 +39,10 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
     # The plane offset comes from the face's plane point (its own first vertex, or that of the
     # face it lies on), transformed exactly like the vertices, so coplanar faces of one
     # instance get bit-identical planes and their depth ties are decided by layer alone.
-    transform_kernel(to_eye_rot, np.ascontiguousarray(draws.rotation), np.ascontiguousarray(rel),
-                     table.corner_base[model], corners, table.face_base[model], faces,
-                     table.corner_xyz, table.normal, table.plane_xyz, eye_verts, normal, sun_dot, d,
-                     np.asarray(database.sun, np.float64))
+    drawn = DrawnInstances(to_eye_rot, np.ascontiguousarray(draws.rotation), np.ascontiguousarray(rel),
+                           table.corner_base[model], corners, table.face_base[model], faces)
+    transform_kernel(drawn, table, np.asarray(database.sun, np.float64),
+                     (eye_verts, normal, sun_dot, d))
     light = database.ambient + (1.0 - database.ambient) * np.clip(sun_dot, 0.0, 1.0)
 
     sizes = table.face_size[face_rows]
@@ -75,4 +75,5 @@ def empty_polygons(dim: int) -> Polygons:
         opacity=np.zeros(0, np.float32),
         feature_id=np.zeros(0, np.int32),
         plane=np.zeros((0, 4), np.float64),
+        layer=np.zeros(0, np.int16),
     )

@@ -1,154 +1,250 @@
-"""numba kernels for the resolve stage (see resolve.py)."""
+"""numba kernels for the resolve stage (see resolve.py): samples shaded (shading.shade_sample)
+and filtered into pixels, from the sample store or, during visibility, from one sub-area's
+store (box_subarea, EP 0611020's per-sub-area pixel output)."""
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
-from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, F_ON
+from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, SKY_ID
 from channel_worker.pipeline.fog.fog import fog_cos
+from channel_worker.pipeline.jit import borrowing
 
-from .shading import through_air
+from .shading import earth_range, eye_ray, flat_colour, polygon_colour, sample_point, shade_sample
 
-
-@njit(cache=True, inline="always")
-def _polygon_colour(p, y, x, s, colour, air, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on, cloud):
-    """Colour of polygon p at sample s of pixel (x, y); with haze or fog (air: air.air_params)
-    seen through it at the polygon's range there (1/z from its exact depth plane), and through the pixel's
-    cloud if that range lies beyond the cloud's entry range."""
-    r, g, b = colour[p, 0], colour[p, 1], colour[p, 2]
-    if air[0] == 0.0 and air[F_ON] == 0.0 and not cloud_on:
-        return r, g, b
-    a = tx[x, s]
-    c = ty[y, s]
-    ray = math.sqrt(a * a + c * c + 1.0)
-    iz = inv_z[p, 0] * sxs[x, s] + (inv_z[p, 1] * sys_[y, s] + inv_z[p, 2])
-    # Guards: polygons are clipped to z >= near > 0 (1/z > 0); ray >= 1.
-    return through_air(air, cloud_on, cloud, y, x, ray / max(iz, 1e-300),
-                       (dz_row[0] * a + dz_row[1] * c + dz_row[2]) / ray,
-                       fog_cos(air, a, c, ray), r, g, b)
+#: Marks a sub-area whose samples do not all see one thing (not a feature identity).
+_MIXED = -100
 
 
-@njit(cache=True, inline="always")
-def _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth, bg_rgb, air, inv_z, sxs,
-           sys_, tx, ty, dz_row, cloud_on, cloud):
-    """Linear RGB of one sample: its translucent features front to back over the opaque one,
-    each seen through the air (haze, fog) at its own range."""
-    r = np.float32(0.0)
-    g = np.float32(0.0)
-    b = np.float32(0.0)
-    through = np.float32(1.0)
-    for q in range(count[y, x, s]):
-        p = trans[y, x, s, q]
-        a = opacity[p] * through
-        cr, cg, cb = _polygon_colour(p, y, x, s, colour, air, inv_z, sxs, sys_, tx, ty, dz_row,
-                                     cloud_on, cloud)
-        r += a * cr
-        g += a * cg
-        b += a * cb
-        through *= np.float32(1.0) - opacity[p]
-    f = opaque[y, x, s]
-    if f >= 0:
-        cr, cg, cb = _polygon_colour(f, y, x, s, colour, air, inv_z, sxs, sys_, tx, ty, dz_row,
-                                     cloud_on, cloud)
-        return r + through * cr, g + through * cg, b + through * cb
-    if f == BACKGROUND_ID:
-        return r + through * bg_rgb[y, x, 0], g + through * bg_rgb[y, x, 1], b + through * bg_rgb[y, x, 2]
-    if f == EARTH_ID:
-        return r + through * earth[0], g + through * earth[1], b + through * earth[2]
-    return r + through * sky[0], g + through * sky[1], b + through * sky[2]
+class StoreIn(NamedTuple):
+    """The sample store as the resolve kernels read it (contract.SampleBuffer).
 
-
-@njit(cache=True, inline="always")
-def _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above, bg_range):
-    """Nearest surface seen by the pixel: its nearest polygon or, nearer, the earth plane.
-
-    Range to the earth along the ray (tx, ty, 1): |ray| * height_above / -dz; dz < 0 for
-    every earth sample (visibility decided so) except by rounding right at the horizon, where
-    the divisor is clamped to a tiny positive value (range -> huge, never negative).
+    Attributes:
+        opaque: (H, W, S) int32 nearest opaque feature, or SKY_ID / EARTH_ID / BACKGROUND_ID.
+        trans: (H * W * S, K) int32 translucent features, nearest first, row (y W + x) S + s
+            (a (1, K) stand-in when the frame has none: every count is then 0).
+        trans_count: (H, W, S) uint8 how many of them are meaningful.
+        polygon_range: (H, W) float32 nearest polygon's range per pixel (when want_range).
+        want_range: compute each pixel's range.
     """
-    nearest = polygon_range[y, x]
-    for s in range(opaque.shape[2]):
-        if opaque[y, x, s] == BACKGROUND_ID:
-            nearest = min(nearest, bg_range[y, x])
-        elif opaque[y, x, s] == EARTH_ID:
-            a = tx[x, s]
-            c = ty[y, s]
-            dz = dz_row[0] * a + dz_row[1] * c + dz_row[2]
-            nearest = min(nearest, math.sqrt(a * a + c * c + 1.0) * height_above / max(-dz, 1e-300))
+
+    opaque: np.ndarray
+    trans: np.ndarray
+    trans_count: np.ndarray
+    polygon_range: np.ndarray
+    want_range: bool
+
+
+@borrowing
+def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_range, sc, out_rgb,
+                out_range):
+    """The pixels of one sub-area from its sample store sc (visibility's Scratch): each
+    sample shaded, averaged over the pixel; with want_range the pixel's nearest range.
+
+    rect: (x0, y0, x1, y1) the sub-area's pixels; backdrop: EARTH_ID or SKY_ID if every
+    uncovered sample of it sees that, else 0 (the horizon crosses it, or the frame has a
+    background).
+    """
+    tx0, ty0, tx1, ty1 = rect
+    tw = tx1 - tx0
+    s_count = frame.offsets_fixed.shape[0]
+    n = tw * (ty1 - ty0) * s_count
+    o_id, o_iz, t_id, t_cnt = sc.o_id, sc.o_iz, sc.t_id, sc.t_cnt
+    # A sub-area whose every sample sees one thing and nothing translucent (open sky, open
+    # ground, the inside of a large face) is one colour: fill it without shading.
+    uniform = o_id[0]
+    for i in range(n):
+        if o_id[i] != uniform or (any_translucent and t_cnt[i] != 0):
+            uniform = _MIXED
+            break
+    if uniform < 0 and uniform != _MIXED:
+        uniform = backdrop if backdrop != 0 else _MIXED
+    if sh.by_range:
+        uniform = _MIXED  # hazed, fogged or clouded colours vary with range
+    if uniform != _MIXED and not want_range:
+        cr, cg, cb = flat_colour(sh, uniform)
+        for y in range(ty0, ty1):
+            for x in range(tx0, tx1):
+                out_rgb[y, x, 0] = cr
+                out_rgb[y, x, 1] = cg
+                out_rgb[y, x, 2] = cb
+        return
+    kx, ky, k0 = frame.horizon[0], frame.horizon[1], frame.horizon[2]
+    m = frame.mapping
+    dz = frame.dz_row
+    inv_s = 1.0 / s_count
+    for y in range(ty0, ty1):
+        for x in range(tx0, tx1):
+            base = ((y - ty0) * tw + (x - tx0)) * s_count
+            if not want_range:
+                # Most pixels, even in a busy sub-area, see one thing with every sample (with
+                # haze or clouds: one polygon, seen through the air at the pixel's centre).
+                f0 = o_id[base]
+                same = f0 >= 0 or (backdrop != 0 and not sh.by_range)
+                for s in range(1, s_count):
+                    if o_id[base + s] != f0:
+                        same = False
+                        break
+                if same and any_translucent:
+                    for s in range(s_count):
+                        if t_cnt[base + s] != 0:
+                            same = False
+                            break
+                if same:
+                    if f0 >= 0 and sh.by_range:
+                        iz = 0.0
+                        for s in range(s_count):
+                            iz += o_iz[base + s]
+                        rx = ((x + 0.5) - m[1]) / m[0]
+                        ry = ((y + 0.5) - m[3]) / m[2]
+                        ray = math.sqrt(rx * rx + ry * ry + 1.0)
+                        cos_ax = 0.0
+                        if sh.fogged:
+                            cos_ax = fog_cos(sh.air, rx, ry, ray)
+                        # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
+                        cr, cg, cb = polygon_colour(sh, f0, y, x, ray * s_count / iz,
+                                                    (dz[0] * rx + dz[1] * ry + dz[2]) / ray, cos_ax)
+                    else:
+                        cr, cg, cb = flat_colour(sh, f0 if f0 >= 0 else backdrop)
+                    out_rgb[y, x, 0] = cr
+                    out_rgb[y, x, 1] = cg
+                    out_rgb[y, x, 2] = cb
+                    continue
+            r = 0.0
+            g = 0.0
+            b = 0.0
+            near_range = np.inf
+            for s in range(s_count):
+                i = base + s
+                # The sample's position and ray only where something needs them: most samples
+                # of a frame without haze, fog or clouds need neither.
+                sx = 0.0
+                sy = 0.0
+                rx = 0.0
+                ry = 0.0
+                ray = 1.0
+                sin_el = 0.0
+                cos_ax = 0.0
+                f = o_id[i]
+                if f < 0:
+                    if background.on:
+                        f = BACKGROUND_ID
+                    elif backdrop != 0:
+                        f = backdrop
+                    else:
+                        sx, sy = sample_point(frame, x, y, s)
+                        f = EARTH_ID if kx * sx + ky * sy + k0 < 0.0 else SKY_ID
+                if sh.by_range or want_range:
+                    sx, sy = sample_point(frame, x, y, s)
+                    rx, ry, ray, sin_el, cos_ax = eye_ray(frame, sh, sx, sy)
+                n_trans = t_cnt[i] if any_translucent else 0
+                r, g, b = shade_sample(sh, y, x, (sx, sy), (ray, sin_el, cos_ax), f, n_trans, t_id,
+                                       i, (r, g, b))
+                if want_range:
+                    if f >= 0:
+                        # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
+                        near_range = min(near_range, ray / o_iz[i])
+                    elif f == BACKGROUND_ID:
+                        near_range = min(near_range, background.range_m[y, x])
+                    elif f == EARTH_ID:
+                        near_range = min(near_range, earth_range(frame, rx, ry))
+            out_rgb[y, x, 0] = r * inv_s
+            out_rgb[y, x, 1] = g * inv_s
+            out_rgb[y, x, 2] = b * inv_s
+            if want_range:
+                out_range[y, x] = near_range
+
+
+@njit(cache=True, inline="always")
+def _sample_colour(store, frame, background, sh, y, x, s, acc):
+    """acc plus the colour of sample s of pixel (x, y) of the store."""
+    w = store.opaque.shape[1]
+    s_count = store.opaque.shape[2]
+    sx, sy = sample_point(frame, x, y, s)
+    ray = 1.0
+    sin_el = 0.0
+    cos_ax = 0.0
+    if sh.by_range:
+        _, _, ray, sin_el, cos_ax = eye_ray(frame, sh, sx, sy)
+    return shade_sample(sh, y, x, (sx, sy), (ray, sin_el, cos_ax), store.opaque[y, x, s],
+                        store.trans_count[y, x, s], store.trans, (y * w + x) * s_count + s, acc)
+
+
+@njit(cache=True, inline="always")
+def _pixel_range(store, frame, background, y, x):
+    """Nearest surface seen by the pixel: its nearest polygon or, nearer, the background or
+    the earth plane."""
+    nearest = store.polygon_range[y, x]
+    for s in range(store.opaque.shape[2]):
+        f = store.opaque[y, x, s]
+        if f == BACKGROUND_ID:
+            nearest = min(nearest, background.range_m[y, x])
+        elif f == EARTH_ID:
+            sx, sy = sample_point(frame, x, y, s)
+            m = frame.mapping
+            nearest = min(nearest, earth_range(frame, (sx - m[1]) / m[0], (sy - m[3]) / m[2]))
     return nearest
 
 
 @njit(cache=True, parallel=True)
-def box_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
-               height_above, want_range, bg_rgb, bg_range, air, inv_z, sxs, sys_, cloud_on,
-               cloud, out_rgb, out_range):
-    """Shade and average the samples of each pixel in one pass (no sample colour buffer).
+def box_kernel(store, frame, background, sh, out_rgb, out_range):
+    """Shade and average the samples of each pixel in one pass (no sample colour buffer)."""
+    for y in prange(store.opaque.shape[0]):
+        _box_row(y, store, frame, background, sh, out_rgb, out_range)
 
-    A pixel whose samples all see one feature and nothing translucent (most pixels) takes that
-    feature's colour without a per-sample sum.
-    """
-    h, w, s_count = opaque.shape
-    inv_s = np.float32(1.0 / s_count)
-    for y in prange(h):
-        for x in range(w):
-            f0 = opaque[y, x, 0]
-            uniform = True
+
+@borrowing
+def _box_row(y, store, frame, background, sh, out_rgb, out_range):
+    """One row of box_kernel. A pixel whose samples all see one feature and nothing
+    translucent (most pixels) takes that feature's colour without a per-sample sum."""
+    w, s_count = store.opaque.shape[1], store.opaque.shape[2]
+    inv_s = 1.0 / s_count
+    for x in range(w):
+        f0 = store.opaque[y, x, 0]
+        uniform = not (sh.by_range or f0 == BACKGROUND_ID)  # those vary per sample / pixel
+        for s in range(s_count):
+            if not uniform or store.opaque[y, x, s] != f0 or store.trans_count[y, x, s] != 0:
+                uniform = False
+                break
+        if uniform:
+            cr, cg, cb = flat_colour(sh, f0)
+            out_rgb[y, x, 0] = cr
+            out_rgb[y, x, 1] = cg
+            out_rgb[y, x, 2] = cb
+        else:
+            acc = (0.0, 0.0, 0.0)
             for s in range(s_count):
-                if opaque[y, x, s] != f0 or count[y, x, s] != 0:
-                    uniform = False
-                    break
-            if uniform and (air[0] != 0.0 or air[F_ON] != 0.0 or cloud_on or f0 == BACKGROUND_ID):
-                uniform = False  # hazed colours vary per sample; the background per pixel
-            if uniform:
-                if f0 >= 0:
-                    out_rgb[y, x, 0] = colour[f0, 0]
-                    out_rgb[y, x, 1] = colour[f0, 1]
-                    out_rgb[y, x, 2] = colour[f0, 2]
-                else:
-                    bg = earth if f0 == EARTH_ID else sky
-                    out_rgb[y, x, 0] = bg[0]
-                    out_rgb[y, x, 1] = bg[1]
-                    out_rgb[y, x, 2] = bg[2]
-            else:
-                r = np.float32(0.0)
-                g = np.float32(0.0)
-                b = np.float32(0.0)
-                for s in range(s_count):
-                    sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth,
-                                        bg_rgb, air, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on,
-                                        cloud)
-                    r += sr
-                    g += sg
-                    b += sb
-                out_rgb[y, x, 0] = r * inv_s
-                out_rgb[y, x, 1] = g * inv_s
-                out_rgb[y, x, 2] = b * inv_s
-            if want_range:
-                out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above,
-                                               bg_range)
+                acc = _sample_colour(store, frame, background, sh, y, x, s, acc)
+            out_rgb[y, x, 0] = acc[0] * inv_s
+            out_rgb[y, x, 1] = acc[1] * inv_s
+            out_rgb[y, x, 2] = acc[2] * inv_s
+        if store.want_range:
+            out_range[y, x] = _pixel_range(store, frame, background, y, x)
 
 
 @njit(cache=True, parallel=True)
-def shade_kernel(opaque, trans, count, polygon_range, colour, opacity, sky, earth, tx, ty, dz_row,
-                 height_above, want_range, bg_rgb, bg_range, air, inv_z, sxs, sys_, cloud_on,
-                 cloud, out_samples, out_range):
+def shade_kernel(store, frame, background, sh, out_samples, out_range):
     """Every sample's colour, for filters that also read neighbouring pixels' samples."""
-    h, w, s_count = opaque.shape
-    for y in prange(h):
-        for x in range(w):
-            for s in range(s_count):
-                sr, sg, sb = _shade(y, x, s, opaque, trans, count, colour, opacity, sky, earth,
-                                    bg_rgb, air, inv_z, sxs, sys_, tx, ty, dz_row, cloud_on,
-                                    cloud)
-                out_samples[y, x, s, 0] = sr
-                out_samples[y, x, s, 1] = sg
-                out_samples[y, x, s, 2] = sb
-            if want_range:
-                out_range[y, x] = _pixel_range(y, x, opaque, polygon_range, tx, ty, dz_row, height_above,
-                                               bg_range)
+    for y in prange(store.opaque.shape[0]):
+        _shade_row(y, store, frame, background, sh, out_samples, out_range)
+
+
+@borrowing
+def _shade_row(y, store, frame, background, sh, out_samples, out_range):
+    """One row of shade_kernel."""
+    w, s_count = store.opaque.shape[1], store.opaque.shape[2]
+    for x in range(w):
+        for s in range(s_count):
+            r, g, b = _sample_colour(store, frame, background, sh, y, x, s, (0.0, 0.0, 0.0))
+            out_samples[y, x, s, 0] = r
+            out_samples[y, x, s, 1] = g
+            out_samples[y, x, s, 2] = b
+        if store.want_range:
+            out_range[y, x] = _pixel_range(store, frame, background, y, x)
 
 
 @njit(cache=True, parallel=True)

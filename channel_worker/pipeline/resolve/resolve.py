@@ -16,7 +16,8 @@ from channel_worker.pipeline.contract import (
 )
 from services.rig.options import RenderOptions
 
-from ._resolve_kernels import box_kernel, filter_kernel, shade_kernel
+from ._resolve_kernels import StoreIn, box_kernel, filter_kernel, shade_kernel
+from .shading import shading
 
 
 def _box(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
@@ -77,20 +78,15 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, frame: FrameConstants,
     rgb = rgb_array(out, h, w)
     want_range = buffer.polygon_range is not None
     range_m = np.empty((h, w) if want_range else (1, 1), np.float32)
-    polygon_range = buffer.polygon_range if want_range else range_m
-    sx_scale, sx_off, sy_scale, sy_off = frame.mapping
-    tx = (np.arange(w)[:, None] + buffer.offsets[None, :, 0] - sx_off) / sx_scale
-    ty = (np.arange(h)[:, None] + buffer.offsets[None, :, 1] - sy_off) / sy_scale
-    sxs = np.arange(w)[:, None] + buffer.offsets[None, :, 0]
-    sys_ = np.arange(h)[:, None] + buffer.offsets[None, :, 1]
-    args = (buffer.opaque, buffer.translucent, buffer.translucent_count, polygon_range,
-            screen.colour, screen.opacity, frame.sky, frame.earth, tx, ty, frame.dz_row,
-            frame.height_above, want_range, background.rgb, background.range_m, background.air,
-            screen.inv_z, sxs, sys_, background.cloud_on, background.cloud)
+    polygon_range = range_m if buffer.polygon_range is None else buffer.polygon_range
+    k = buffer.translucent.shape[3]
+    store = StoreIn(buffer.opaque, buffer.translucent.reshape(-1, k), buffer.translucent_count,
+                    polygon_range, want_range)
+    sh = shading(screen, frame, background)
     if options.filter == "box":
-        box_kernel(*args, rgb, range_m)
+        box_kernel(store, frame, background, sh, rgb, range_m)
     else:
         samples = np.empty(buffer.opaque.shape + (3,), np.float32)
-        shade_kernel(*args, samples, range_m)
+        shade_kernel(store, frame, background, sh, samples, range_m)
         filter_kernel(samples, filter_weights(options.filter, buffer.offsets), rgb)
     return Image(rgb=rgb, range_m=range_m if want_range else None)

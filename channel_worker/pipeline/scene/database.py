@@ -9,6 +9,7 @@ their own scene types (atmosphere.py, terrain/).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -58,9 +59,9 @@ class Model:
         return int(self.face_start.shape[0] - 1)
 
 
-@dataclass(frozen=True)
-class FaceTable:
-    """Every model's faces flattened into one table, so all instances transform in one pass.
+class FaceTable(NamedTuple):
+    """Every model's faces flattened into one table, so all instances transform in one pass
+    (a NamedTuple: the transform kernel takes it whole).
 
     Per model m: corner_count[m] face-vertex slots starting at corner_base[m] in corner_xyz,
     face_count[m] faces starting at face_base[m] in the per-face arrays.
@@ -80,7 +81,7 @@ class FaceTable:
     plane_xyz: np.ndarray  # (F, 3) float64 model metres, the point fixing each face's plane
 
     @staticmethod
-    def of(models: "tuple[Model, ...]") -> "FaceTable":
+    def of(models: tuple[Model, ...]) -> FaceTable:
         corner_count = np.array([m.face_index.shape[0] for m in models], np.int64)
         face_count = np.array([m.face_count for m in models], np.int64)
         empty = not models
@@ -92,9 +93,12 @@ class FaceTable:
             corner_xyz=np.zeros((0, 3)) if empty else np.concatenate([m.vertices[m.face_index] for m in models]),
             normal=np.zeros((0, 3)) if empty else np.concatenate([m.normal for m in models]),
             colour=np.zeros((0, 3), np.float32) if empty else np.concatenate([m.colour for m in models]),
-            opacity=np.zeros(0, np.float32) if empty else np.concatenate([m.opacity for m in models]).astype(np.float32),
-            face_size=np.zeros(0, np.int64) if empty else np.concatenate([np.diff(m.face_start) for m in models]).astype(np.int64),
-            local_face=np.zeros(0, np.int64) if empty else np.concatenate([np.arange(m.face_count) for m in models]).astype(np.int64),
+            opacity=(np.zeros(0, np.float32) if empty
+                     else np.concatenate([m.opacity for m in models]).astype(np.float32)),
+            face_size=(np.zeros(0, np.int64) if empty
+                       else np.concatenate([np.diff(m.face_start) for m in models]).astype(np.int64)),
+            local_face=(np.zeros(0, np.int64) if empty
+                        else np.concatenate([np.arange(m.face_count) for m in models]).astype(np.int64)),
             layer=np.zeros(0, np.int16) if empty else np.concatenate([m.layer for m in models]).astype(np.int16),
             plane_xyz=np.zeros((0, 3)) if empty else np.concatenate([m.vertices[m.plane_vertex] for m in models]),
         )

@@ -149,7 +149,8 @@ class _Parser:
             rotations.append(hpr_matrix(*hpr))
             names.append(name)
         face_counts = np.array([models[m].face_count for m in model_ix], dtype=np.int64)
-        face_base = np.concatenate([[0], np.cumsum(face_counts)[:-1]]).astype(np.int64) if model_ix else np.zeros(0, np.int64)
+        face_base = (np.concatenate([[0], np.cumsum(face_counts)[:-1]]).astype(np.int64) if model_ix
+                     else np.zeros(0, np.int64))
         return Database(
             models=tuple(models),
             instance_model=np.array(model_ix, dtype=np.int64),
@@ -239,7 +240,7 @@ class _Parser:
                     colour=self.colour(doc["colour"], "haze.colour"))
 
     def fog(self, doc: Any) -> Fog | None:
-        """The optional "fog" key: seed 004's strata, by extinction or by visibility per plane."""
+        """The optional "fog" key: US 5,535,374's strata, by extinction or by visibility per plane."""
         if doc is None:
             return None
         doc = self.obj(doc, "fog", {"colour"}, {"axis", "origin_m", "spacing_m", "extinction_per_m",
@@ -282,8 +283,13 @@ class _Parser:
         faces = doc["faces"]
         if not isinstance(faces, list) or not faces:
             raise self.fail(f"{where}.faces", f"expected a non-empty list, got {_show(faces)}")
-        start, flat, colours, opacity, normals = [0], [], [], [], []
-        layers, plane_vertex = [], []
+        start: list[int] = [0]
+        flat: list[int] = []
+        colours: list[np.ndarray] = []
+        opacity: list[float] = []
+        normals: list[np.ndarray] = []
+        layers: list[int] = []
+        plane_vertex: list[int] = []
         for k, face in enumerate(faces):
             fwhere = f"{where}.faces[{k}]"
             face = self.obj(face, fwhere, {"indices", "colour"}, {"opacity", "on", "layer"})

@@ -1,6 +1,6 @@
 """numba kernels for the scan-line hidden-surface renderer (see scanline.py, docs/scanline.md).
 
-Two kernels: edge_list_kernel builds the seed's EDGE LIST from the snapped polygons, and
+Two kernels: edge_list_kernel builds the Note's EDGE LIST from the snapped polygons, and
 scan_frame_kernel runs the Line Phase and the Element Phase over bands of scan lines.
 
 Intercepts are exact. A sample at pixel x of scan line y sits at (x S + S/2, y S + S/2) in
@@ -8,20 +8,22 @@ Intercepts are exact. A sample at pixel x of scan line y sits at (x S + S/2, y S
 when E = (Px - X0) dy - (Py - Y0) dx >= bias (bias 0 on top/left edges, else 1). On one scan
 line that is a bound on x alone, x >= ceil(N / D) (ENTER edge, dy > 0) or x <= floor(N / D)
 (EXIT edge, dy < 0), with integers N, D that this module keeps as an exact quotient and
-remainder: the seed's recursion i(j + 1) = i(j) + delta_i, with the fraction carried exactly
+remainder: the Note's recursion i(j + 1) = i(j) + delta_i, with the fraction carried exactly
 instead of in 9 bits, so no rounding ever moves a span end.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
-from channel_worker.pipeline.contract import EARTH_ID, SKY_ID
+from channel_worker.pipeline.contract import EARTH_ID, SKY_ID, SUBPIXEL
+from channel_worker.pipeline.jit import borrowing
 
-#: Edge kinds (the seed's EN/EX bit, plus horizontal edges, which bound no span along the scan:
+#: Edge kinds (the Note's EN/EX bit, plus horizontal edges, which bound no span along the scan:
 #: on a scan line they either keep the whole line or none of it).
 ENTER = 0
 EXIT = 1
@@ -38,13 +40,62 @@ STAT_DROPPED = 6  # translucent faces dropped from full stores (sum over samples
 N_STATS = 7
 
 
+class EdgeList(NamedTuple):
+    """The EDGE LIST (edge_list_kernel): per edge its kind (ENTER, EXIT, GATE), its face, its
+    first and last scan line, and its exact intercept: numerator num0 + y step over den at
+    scan line y, the step split as step_q den + step_r (0 <= step_r < den)."""
+
+    kind: np.ndarray
+    poly: np.ndarray
+    jmin: np.ndarray
+    jmax: np.ndarray
+    num0: np.ndarray
+    den: np.ndarray
+    step: np.ndarray
+    step_q: np.ndarray
+    step_r: np.ndarray
+
+
+class PriorityList(NamedTuple):
+    """Per face: its index in the PRIORITY LIST (rank, 0 = seen in front of everything), whether
+    it is opaque, and its 1/z plane on the screen (for ranges)."""
+
+    rank: np.ndarray
+    is_opaque: np.ndarray
+    inv_z: np.ndarray
+
+
+class ScanOut(NamedTuple):
+    """The sample store the scan writes, one sample per pixel: (H, W, 1) nearest opaque face,
+    (H, W, 1, K) translucent faces ahead of it, (H, W, 1) their count, (H, W) range."""
+
+    opaque: np.ndarray
+    trans: np.ndarray
+    trans_count: np.ndarray
+    range_m: np.ndarray
+
+
+class LineLists(NamedTuple):
+    """One band's working lists: the ACTIVE LIST (edge, intercept quotient and remainder, the
+    column where it acts) and the ON/OFF LIST as counts per face (active ENTER edges, those
+    passed, EXIT/GATE edges passed) with the faces on, in priority order."""
+
+    act_e: np.ndarray
+    act_q: np.ndarray
+    act_r: np.ndarray
+    act_t: np.ndarray
+    n_enter: np.ndarray
+    passed_in: np.ndarray
+    passed_out: np.ndarray
+    on: np.ndarray
+
+
 @njit(cache=True)
-def edge_list_kernel(fixed, start, height, subpixel, out_kind, out_poly, out_jmin, out_jmax,
-                     out_num0, out_den, out_step, out_extended):
+def edge_list_kernel(fixed, start, height, out, out_extended):
     """The EDGE LIST: per edge its kind, face, first and last scan line, and exact intercept.
 
     An edge of a convex polygon is active on the scan lines whose sample row lies within its
-    own y extent, ends included (the seed's jmin..jmax). Snapping to the 1/S grid can leave a
+    own y extent, ends included (the Note's jmin..jmax). Snapping to the 1/S grid can leave a
     polygon slightly non-convex (three nearly collinear vertices); the edge test then keeps the
     intersection of all the edges' half-planes, which some edge not crossing the scan line may
     cut. Such a polygon's edges are made active over the polygon's whole y extent instead
@@ -53,8 +104,11 @@ def edge_list_kernel(fixed, start, height, subpixel, out_kind, out_poly, out_jmi
     Per edge, the intercept numerator at scan line y is num0 + y * step, over den > 0:
     ENTER: first covered column ceil(num / den); EXIT: last covered column floor(num / den);
     GATE (dy == 0): the scan line is kept iff num <= 0 (den 1).
+    out: (kind, poly, jmin, jmax, num0, den, step) arrays, one row per edge written.
     Returns the number of edges written (edges that meet no sample row are left out).
     """
+    out_kind, out_poly, out_jmin, out_jmax, out_num0, out_den, out_step = out
+    subpixel = SUBPIXEL
     n_poly = start.shape[0] - 1
     half = subpixel // 2
     n_out = 0
@@ -145,46 +199,35 @@ def edge_list_kernel(fixed, start, height, subpixel, out_kind, out_poly, out_jmi
 
 
 @njit(cache=True, parallel=True)
-def scan_frame_kernel(kind, poly, jmin, jmax, num0, den, step, step_q, step_r, incidence, rank,
-                      is_opaque, inv_z, horizon, mapping, subpixel, n_bands, out_opaque,
-                      out_trans, out_count, out_range, band_stats):
+def scan_frame_kernel(edges, incidence, faces, frame, n_bands, out, band_stats):
     """Run the scan-line algorithm over the frame, bands of scan lines in parallel.
 
-    Each band runs the seed's phases on its own lines from its own ACTIVE LIST; every result
-    and counter is a function of one scan line alone (the arithmetic is exact), so the output
-    does not depend on the number of bands or threads.
+    Each band runs the phases of ARL Systems Note 77 on its own lines from its own ACTIVE LIST;
+    every result and counter is a function of one scan line alone (the arithmetic is exact),
+    so the output does not depend on the number of bands or threads.
 
-    kind, poly, jmin, jmax, num0, den, step: the EDGE LIST (edge_list_kernel); step_q,
-        step_r: step = step_q den + step_r, 0 <= step_r < den (the per-line increment).
-    incidence: edge indices by ascending jmin (the INCIDENCE LIST).
-    rank: per face its index in the PRIORITY LIST (0 = nearest).
-    is_opaque: per face, opacity >= 1.
-    inv_z: (N, 3) 1/z = A sx + B sy + C per face, for the ranges.
-    horizon: (kx, ky, k0), world z of the ray through (sx, sy) is kx sx + ky sy + k0.
-    mapping: (sx_scale, sx_off, sy_scale, sy_off), screen = tangent * scale + offset.
-    out_opaque (H, W, 1), out_trans (H, W, 1, K), out_count (H, W, 1) zeroed, out_range (H, W).
-    band_stats: (n_bands, N_STATS) int64 zeroed.
+    edges: the EdgeList; incidence: edge indices by ascending jmin (the INCIDENCE LIST);
+    faces: the PriorityList; frame: FrameConstants (horizon, mapping); out: ScanOut (opaque,
+    trans, count zeroed); band_stats: (n_bands, N_STATS) int64 zeroed.
     """
-    height = out_range.shape[0]
+    height = out.range_m.shape[0]
     # Guard: the caller passes 1 <= n_bands <= height.
     rows = (height + n_bands - 1) // n_bands
     for band in prange(n_bands):
         y_lo = band * rows
         y_hi = min(height, y_lo + rows)
         if y_lo < y_hi:
-            _scan_band(y_lo, y_hi, kind, poly, jmin, jmax, num0, den, step, step_q, step_r,
-                       incidence, rank, is_opaque, inv_z, horizon, mapping, subpixel,
-                       out_opaque, out_trans, out_count, out_range, band_stats[band])
+            _scan_band(y_lo, y_hi, edges, incidence, faces, frame, out, band_stats[band])
 
 
 @njit(cache=True)
-def _scan_band(y_lo, y_hi, kind, poly, jmin, jmax, num0, den, step, step_q, step_r, incidence,
-               rank, is_opaque, inv_z, horizon, mapping, subpixel, out_opaque, out_trans,
-               out_count, out_range, stats):
+def _scan_band(y_lo, y_hi, edges, incidence, faces, frame, out, stats):
     """Frame Phase set-up for one band, then Line Phase + Element Phase per scan line."""
+    kind, poly, jmin, jmax = edges.kind, edges.poly, edges.jmin, edges.jmax
+    num0, den, step, step_q, step_r = edges.num0, edges.den, edges.step, edges.step_q, edges.step_r
     n_edges = kind.shape[0]
-    n_poly = rank.shape[0]
-    width = out_range.shape[1]
+    n_poly = faces.rank.shape[0]
+    width = out.range_m.shape[1]
     # ACTIVE LIST capacity: the edges that meet the band.
     cap = 0
     for e in range(n_edges):
@@ -201,6 +244,7 @@ def _scan_band(y_lo, y_hi, kind, poly, jmin, jmax, num0, den, step, step_q, step
     passed_in = np.zeros(n_poly, np.int64)
     passed_out = np.zeros(n_poly, np.int64)
     on = np.empty(cap + 1, np.int64)  # faces on, in PRIORITY LIST order
+    lists = LineLists(act_e, act_q, act_r, act_t, n_enter, passed_in, passed_out, on)
     n_act = 0
     ptr = 0  # INCIDENCE LIST pointer
     for y in range(y_lo, y_hi):
@@ -243,7 +287,7 @@ def _scan_band(y_lo, y_hi, kind, poly, jmin, jmax, num0, den, step, step_q, step
                 n_enter[poly[e]] += 1
             n_act += 1
         # Line Phase, sort by intercept: insertion sort, cheap on a list nearly in order from
-        # the line before (the seed's bubble sort, same reason).
+        # the line before (the Note's bubble sort, same reason).
         for i in range(1, n_act):
             t = act_t[i]
             if act_t[i - 1] <= t:
@@ -264,9 +308,7 @@ def _scan_band(y_lo, y_hi, kind, poly, jmin, jmax, num0, den, step, step_q, step
             act_t[k] = t
         stats[STAT_CROSSINGS] += n_act
         stats[STAT_ACTIVE_MAX] = max(stats[STAT_ACTIVE_MAX], n_act)
-        _element_phase(y, n_act, act_e, act_t, kind, poly, rank, is_opaque, inv_z, horizon,
-                       mapping, subpixel, n_enter, passed_in, passed_out, on, out_opaque,
-                       out_trans, out_count, out_range, stats)
+        _element_phase(y, n_act, lists, edges, faces, frame, out, stats)
 
 
 @njit(cache=True, inline="always")
@@ -286,11 +328,15 @@ def _column(kind, q, r, width):
     return min(max(t, 0), width)
 
 
-@njit(cache=True)
-def _element_phase(y, n_act, act_e, act_t, kind, poly, rank, is_opaque, inv_z, horizon, mapping,
-                   subpixel, n_enter, passed_in, passed_out, on, out_opaque, out_trans, out_count,
-                   out_range, stats):
+@borrowing
+def _element_phase(y, n_act, lists, edges, faces, frame, out, stats):
     """Visible faces along one scan line: background, then the spans between intercepts."""
+    act_e, act_t, on = lists.act_e, lists.act_t, lists.on
+    n_enter, passed_in, passed_out = lists.n_enter, lists.passed_in, lists.passed_out
+    kind, poly, rank, is_opaque = edges.kind, edges.poly, faces.rank, faces.is_opaque
+    horizon = frame.horizon
+    out_opaque, out_range = out.opaque, out.range_m
+    subpixel = SUBPIXEL
     width = out_range.shape[1]
     half = subpixel // 2
     inv_sub = 1.0 / subpixel
@@ -316,8 +362,7 @@ def _element_phase(y, n_act, act_e, act_t, kind, poly, rank, is_opaque, inv_z, h
         while j < n_act and act_t[j] == t:
             j += 1
         if t > x_cur:
-            _span(y, x_cur, t, n_on, on, is_opaque, inv_z, mapping, sy, subpixel, out_opaque,
-                  out_trans, out_count, out_range, stats)
+            _span(y, x_cur, t, n_on, on, faces, frame, sy, out, stats)
             x_cur = t
         if j - i > 1:
             # MULTIPLE EDGE routine: every ENTER at this intercept first, then every EXIT, so
@@ -348,8 +393,7 @@ def _element_phase(y, n_act, act_e, act_t, kind, poly, rank, is_opaque, inv_z, h
             br = visible
         i = j
     if x_cur < width:
-        _span(y, x_cur, width, n_on, on, is_opaque, inv_z, mapping, sy, subpixel, out_opaque,
-              out_trans, out_count, out_range, stats)
+        _span(y, x_cur, width, n_on, on, faces, frame, sy, out, stats)
     for m in range(n_act):
         p = poly[act_e[m]]
         passed_in[p] = 0
@@ -378,11 +422,13 @@ def _turn_off(p, n_on, on):
     return n_on
 
 
-@njit(cache=True)
-def _span(y, x0, x1, n_on, on, is_opaque, inv_z, mapping, sy, subpixel, out_opaque, out_trans,
-          out_count, out_range, stats):
-    """Write pixels x0..x1-1 of scan line y: the highest-priority opaque face on, and the
-    translucent faces on ahead of it in the priority list (nearest first, at most K)."""
+@borrowing
+def _span(y, x0, x1, n_on, on, faces, frame, sy, out, stats):
+    """Write pixels x0..x1-1 of scan line y (screen y sy): the highest-priority opaque face on,
+    and the translucent faces on ahead of it in the priority list (nearest first, at most K)."""
+    is_opaque, inv_z, mapping = faces.is_opaque, faces.inv_z, frame.mapping
+    out_opaque, out_trans, out_count, out_range = out.opaque, out.trans, out.trans_count, out.range_m
+    subpixel = SUBPIXEL
     visible = -1
     n_front = 0
     for m in range(n_on):

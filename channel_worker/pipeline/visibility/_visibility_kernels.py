@@ -3,26 +3,72 @@
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
-from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, F_ON, SKY_ID
-from channel_worker.pipeline.fog.fog import fog_cos
-from channel_worker.pipeline.resolve.shading import through_air
+from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, SKY_ID, SUBPIXEL
+from channel_worker.pipeline.jit import borrowing
+from channel_worker.pipeline.resolve._resolve_kernels import box_subarea
+from channel_worker.pipeline.resolve.shading import sample_point
 
 #: Relative margin on the early stop of a sub-area list: 1/z at a sample inside a polygon
 #: can exceed the polygon's largest vertex 1/z only by rounding (~1e-16 relative).
 _EARLY_STOP_MARGIN = 1e-9
 
-#: Marks a sub-area whose samples do not all see one thing (not a feature identity).
-_MIXED = -100
+
+class StoreOut(NamedTuple):
+    """Where visibility_kernel writes: the sample store, or (fused) each pixel's colour.
+
+    Attributes:
+        fused: shade each sample and write the box-filtered pixel (rgb, and with want_range
+            the pixel's nearest range) instead of the sample store.
+        want_range: fill range_m (the store's polygon_range, or the fused pixel range).
+        any_translucent: the frame has translucent polygons (else trans_count is pre-zeroed and
+            trans never written).
+        opaque: (H, W, S) int32 the store's nearest opaque feature per sample.
+        trans: (H, W, S, K) int32 its translucent features, nearest first.
+        trans_count: (H, W, S) uint8 how many of trans are meaningful.
+        range_m: (H, W) float32.
+        rgb: (H, W, 3) float32 (fused).
+        dropped: (tiles,) int64 translucent features dropped from a full store, per sub-area.
+        stopped: (tiles,) int64 list entries never read (the early stop), per sub-area.
+    """
+
+    fused: bool
+    want_range: bool
+    any_translucent: bool
+    opaque: np.ndarray
+    trans: np.ndarray
+    trans_count: np.ndarray
+    range_m: np.ndarray
+    rgb: np.ndarray
+    dropped: np.ndarray
+    stopped: np.ndarray
+
+
+class Scratch(NamedTuple):
+    """One thread's sample store for a sub-area (sample i of the sub-area: ((y - ty0) * tw +
+    (x - tx0)) * S + s): the nearest opaque feature's 1/z, identity and layer, the nearer
+    translucent ones (nearest first) and their count, and each edge's integer step."""
+
+    o_iz: np.ndarray
+    o_id: np.ndarray
+    o_lay: np.ndarray
+    t_iz: np.ndarray
+    t_id: np.ndarray
+    t_lay: np.ndarray
+    t_cnt: np.ndarray
+    e_step: np.ndarray
 
 
 @njit(cache=True, inline="always")
-def _inside(px, py, s0, s1, ia, ib, ic, bias):
-    """Exact edge test of sample (px, py) (1/SUBPIXEL units) against polygon edges s0:s1."""
-    for j in range(s0, s1):
+def _inside(px, py, rows, exact):
+    """Exact edge test of sample (px, py) (1/SUBPIXEL units) against polygon edges
+    rows = (s0, s1); exact = (ia, ib, ic, bias), the integer edge functions (contract.Edges)."""
+    ia, ib, ic, bias = exact
+    for j in range(rows[0], rows[1]):  # noqa: SIM110  (numba compiles the loop, not all())
         if ia[j] * px + ib[j] * py + ic[j] < bias[j]:
             return False
     return True
@@ -40,12 +86,7 @@ def _nearer(iz, lay, idx, ref_iz, ref_lay, ref_idx):
 
 
 @njit(cache=True, parallel=True)
-def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
-                      poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity,
-                      layer, off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
-                      out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
-                      fused, colour, sky, earth, dz_row, height_above, out_rgb, bg_on, bg_rgb,
-                      bg_iz, bg_range, air, cloud_on, cloud):
+def visibility_kernel(bins, screen, edges, frame, background, sh, out):
     """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
@@ -53,108 +94,61 @@ def visibility_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, widt
     opaque feature nearer than the nearest point of the next feature (hierarchical depth
     rejection; with the list order it skips all the rest).
 
-    horizon: (kx, ky, k0), the world-z of the ray through a screen point (horizon.py); an
-    uncovered sample sees the earth where it is negative, the sky elsewhere.
-    mapping: (sx_scale, sx_off, sy_scale, sy_off), screen = tangent * scale + offset.
-    any_translucent: the frame has translucent polygons (else out_count is pre-zeroed and
-    out_trans never written). want_range: fill out_range (else it is left untouched).
+    bins, screen, edges, frame, background: the contract's values (Bins, ScreenPolygons,
+    Edges, FrameConstants, Background); sh: the frame's Shading (resolve.shading), used on the
+    fused path; out: StoreOut.
 
-    fused: instead of writing the sample store, shade each sample from its features and write
-    the box-filtered pixel colour to out_rgb (and, with want_range, the pixel's nearest range
-    including the earth plane, dz_row / height_above as in the resolve stage): the seed's
-    per-sub-area pixel output, with no sample-sized array in memory.
-
-    bg_on: the frame has a Background (terrain stage): every sample starts out holding it as
-    its nearest opaque feature (BACKGROUND_ID at bg_iz, nothing where bg_iz is 0), so polygons
-    behind the terrain are hidden and a list stops early behind a hill; what no polygon covers
-    takes the background's colour bg_rgb and range bg_range. air: air.air_params (polygons are
-    seen through the haze and fog per sample at their range when air has either). cloud_on: cloud (H, W, 5) holds each
-    pixel's cloud (Background.cloud), laid over every polygon sample beyond its entry range.
+    With a background (background.on) every sample starts out holding it as its nearest opaque
+    feature (BACKGROUND_ID at background.inv_z, nothing where that is 0), so polygons behind
+    the terrain are hidden and a list stops early behind a hill; what no polygon covers shows
+    the background. Without one, an uncovered sample sees the earth where the horizon value
+    (frame.horizon) is negative, the sky elsewhere.
     """
-    n_tiles = tile_start.shape[0] - 1
-    s_count = off_fixed.shape[0]
-    k_max = out_trans.shape[3]
-    inv_sub = 1.0 / subpixel
+    s_count = frame.offsets_fixed.shape[0]
+    k_max = out.trans.shape[3]
+    n_max = bins.size * bins.size * s_count
+    max_edges = 3
+    for p in range(screen.start.shape[0] - 1):
+        max_edges = max(max_edges, screen.start[p + 1] - screen.start[p])
     # A thread takes a whole row of sub-areas at a time (handed out one by one, for balance:
     # sky rows are cheap) and walks it left to right, so its pixel writes run along the
     # image rows instead of jumping a page per row of every sub-area; the sample store is
     # allocated once per row of sub-areas. (The caller sets the parallel chunk size to 1.)
-    tiles_y = n_tiles // tiles_x
-    n_max = size * size * s_count
-    max_edges = 3
-    for p in range(poly_start.shape[0] - 1):
-        max_edges = max(max_edges, poly_start[p + 1] - poly_start[p])
-    for row in prange(tiles_y):
-        o_iz = np.empty(n_max, np.float64)
-        o_id = np.empty(n_max, np.int32)
-        o_lay = np.empty(n_max, np.int32)
-        n_t = n_max if any_translucent else 1
-        t_iz = np.empty((n_t, k_max), np.float64)
-        t_id = np.empty((n_t, k_max), np.int32)
-        t_lay = np.empty((n_t, k_max), np.int32)
-        t_cnt = np.zeros(n_t, np.int32)
-        e_step = np.empty(max_edges, np.int64)
-        for t in range(row * tiles_x, (row + 1) * tiles_x):
-            _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
-                  poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity, layer,
-                  off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
-                  out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
-                  o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
-                  fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step, bg_on,
-                  bg_rgb, bg_iz, bg_range, air, cloud_on, cloud)
+    for row in prange(bins.tiles_y):
+        n_t = n_max if out.any_translucent else 1
+        sc = Scratch(np.empty(n_max, np.float64), np.empty(n_max, np.int32),
+                     np.empty(n_max, np.int32), np.empty((n_t, k_max), np.float64),
+                     np.empty((n_t, k_max), np.int32), np.empty((n_t, k_max), np.int32),
+                     np.zeros(n_t, np.int32), np.empty(max_edges, np.int64))
+        for t in range(row * bins.tiles_x, (row + 1) * bins.tiles_x):
+            _tile(t, bins, screen, edges, frame, background, sh, out, sc)
 
 
-@njit(cache=True)
-def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
-          poly_start, ia, ib, ic, bias, x0, x1, y0, y1, nearest, inv_z, opacity, layer,
-          off_fixed, subpixel, horizon, mapping, any_translucent, want_range,
-          out_opaque, out_trans, out_count, out_range, out_dropped, out_stopped,
-          o_iz, o_id, o_lay, t_iz, t_id, t_lay, t_cnt, s_count, k_max, inv_sub,
-          fused, colour, sky, earth, dz_row, height_above, out_rgb, e_step, bg_on, bg_rgb,
-          bg_iz, bg_range, air, cloud_on, cloud):
-    """One sub-area of visibility_kernel, with the chunk's sample store as scratch."""
-    tx0, ty0, tx1, ty1 = _subarea_rect(t, tiles_x, size, width, height)
+@borrowing
+def _tile(t, bins, screen, edges, frame, background, sh, out, sc):
+    """One sub-area of visibility_kernel, with the row's sample store sc as scratch."""
+    tx0, ty0, tx1, ty1 = _subarea_rect(t, bins.tiles_x, bins.size, frame.width, frame.height)
     tw = tx1 - tx0
-    # With a Background the sky and earth come painted by the terrain stage, per pixel.
-    background = 0 if bg_on else _background(tx0, ty0, size, horizon)
+    s_count = frame.offsets_fixed.shape[0]
+    k_max = out.trans.shape[3]
+    any_translucent = out.any_translucent
+    # With a background the sky and earth come painted by the background stage, per pixel.
+    backdrop = 0 if background.on else _backdrop(tx0, ty0, bins.size, frame.horizon)
     n = tw * (ty1 - ty0) * s_count
-    if fused and bg_on and tile_start[t] == tile_start[t + 1]:
-        # No polygon here: the background as the terrain stage made it.
-        for y in range(ty0, ty1):
-            for x in range(tx0, tx1):
-                out_rgb[y, x, 0] = bg_rgb[y, x, 0]
-                out_rgb[y, x, 1] = bg_rgb[y, x, 1]
-                out_rgb[y, x, 2] = bg_rgb[y, x, 2]
-                if want_range:
-                    out_range[y, x] = bg_range[y, x]
-        return
-    if fused and tile_start[t] == tile_start[t + 1]:
-        # Nothing in the sub-area: the background alone, one colour unless the horizon
-        # crosses it (and, with ranges, only if it is sky: the earth's range varies).
-        # Checked before the store is even cleared.
-        if _fill_background(tx0, ty0, tx1, ty1, background, sky, earth, want_range, out_rgb,
-                            out_range):
+    k_first = bins.start[t]
+    k_end = bins.start[t + 1]
+    if out.fused and k_first == k_end:
+        # Nothing in the sub-area: the background alone; without one, a single colour unless
+        # the horizon crosses it (and, with ranges, only if it is sky: the earth's range
+        # varies). Checked before the store is even cleared.
+        if background.on:
+            _copy_background(tx0, ty0, tx1, ty1, background, out)
             return
-    # Only the identities need clearing: 1/z and layer are read only where an identity is set.
-    covered = 0
-    if bg_on:
-        # The terrain is the first opaque feature of every sample it covers; its layer is
-        # below every polygon's, so a polygon at exactly its depth is seen.
-        for y in range(ty0, ty1):
-            for x in range(tx0, tx1):
-                base = ((y - ty0) * tw + (x - tx0)) * s_count
-                for s in range(s_count):
-                    iz = bg_iz[y, x, s]
-                    if iz > 0.0:
-                        o_id[base + s] = BACKGROUND_ID
-                        o_iz[base + s] = iz
-                        o_lay[base + s] = -1
-                        covered += 1
-                    else:
-                        o_id[base + s] = -1
-    else:
-        for i in range(n):
-            o_id[i] = -1
+        if _fill_backdrop(tx0, ty0, tx1, ty1, backdrop, frame, out):
+            return
+    o_iz, o_id, o_lay = sc.o_iz, sc.o_id, sc.o_lay
+    t_iz, t_id, t_lay, t_cnt = sc.t_iz, sc.t_id, sc.t_lay, sc.t_cnt
+    covered = _start_store(tx0, ty0, tx1, ty1, s_count, n, background, sc)
     if any_translucent:
         for i in range(n):
             t_cnt[i] = 0
@@ -162,65 +156,65 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
     # a frame that has translucent features elsewhere.
     trans_here = False
     if any_translucent:
-        for k in range(tile_start[t], tile_start[t + 1]):
-            if opacity[entry_polygon[k]] < 1.0:
+        for k in range(k_first, k_end):
+            if screen.opacity[bins.polygon[k]] < 1.0:
                 trans_here = True
                 break
+    exact = (edges.ia, edges.ib, edges.ic, edges.bias)
+    off_fixed = frame.offsets_fixed
+    inv_sub = 1.0 / SUBPIXEL
     # The farthest stored opaque 1/z only grows as nearer features replace samples, so a stale
     # value is a safe lower bound; it is recomputed only when a stop might be missed by it.
     farthest = 0.0
     stale = False
     dropped = 0
-    for k in range(tile_start[t], tile_start[t + 1]):
-        p = entry_polygon[k]
+    for k in range(k_first, k_end):
+        p = bins.polygon[k]
         if covered == n:
-            bound = nearest[p] * (1.0 + _EARLY_STOP_MARGIN)
+            bound = edges.nearest_inv_z[p] * (1.0 + _EARLY_STOP_MARGIN)
             if bound >= farthest and stale:
                 farthest = o_iz[0]
                 for i in range(1, n):
                     farthest = min(farthest, o_iz[i])
                 stale = False
             if bound < farthest:
-                out_stopped[t] = tile_start[t + 1] - k
+                out.stopped[t] = k_end - k
                 break
-        full = entry_full[k]
-        a = inv_z[p, 0]
-        b = inv_z[p, 1]
-        c = inv_z[p, 2]
-        lay = layer[p]
-        opaque = opacity[p] >= 1.0
-        s0 = poly_start[p]
-        s1 = poly_start[p + 1]
-        lx0 = max(x0[p], tx0)
-        lx1 = min(x1[p], tx1 - 1)
-        ly0 = max(y0[p], ty0)
-        ly1 = min(y1[p], ty1 - 1)
+        full = bins.full[k]
+        a = screen.inv_z[p, 0]
+        b = screen.inv_z[p, 1]
+        c = screen.inv_z[p, 2]
+        lay = screen.layer[p]
+        opaque = screen.opacity[p] >= 1.0
+        rows = (screen.start[p], screen.start[p + 1])
+        box = (max(edges.x0[p], tx0), min(edges.x1[p], tx1 - 1),
+               max(edges.y0[p], ty0), min(edges.y1[p], ty1 - 1))
         if opaque and not trans_here:
             # The common case in its own small function: fewer live values, better code.
-            added = _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, tw,
-                                  s_count, off_fixed, subpixel, inv_sub, ia, ib, ic, bias,
-                                  o_iz, o_id, o_lay, e_step)
+            added = _cover_opaque(p, full, (a, b, c, lay), rows, box, (tx0, ty0, tw), exact,
+                                  off_fixed, sc)
             if added >= 0:
                 covered += added
                 stale = True
             continue
+        lx0, lx1, ly0, ly1 = box
         changed = False
-        n_edges = s1 - s0
+        n_edges = rows[1] - rows[0]
         if not full:
             for j in range(n_edges):
-                e_step[j] = ia[s0 + j] * subpixel
+                sc.e_step[j] = exact[0][rows[0] + j] * SUBPIXEL
         for s in range(s_count):
             ox = off_fixed[s, 0]
             oy = off_fixed[s, 1]
             for y in range(ly0, ly1 + 1):
-                py = y * subpixel + oy
+                py = y * SUBPIXEL + oy
                 klo = 0
                 khi = lx1 - lx0
                 if not full:
-                    klo, khi = _row_span(n_edges, s0, ia, ib, ic, bias, e_step,
-                                         lx0 * subpixel + ox, py, khi)
+                    klo, khi = _row_span(exact, rows[0], n_edges, sc.e_step, lx0 * SUBPIXEL + ox,
+                                         py, khi)
                 for x in range(lx0 + klo, lx0 + khi + 1):
-                    px = x * subpixel + ox
+                    px = x * SUBPIXEL + ox
                     i = ((y - ty0) * tw + (x - tx0)) * s_count + s
                     iz = a * (px * inv_sub) + (b * (py * inv_sub) + c)
                     if o_id[i] != -1 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], o_id[i]):
@@ -263,82 +257,91 @@ def _tile(t, tile_start, entry_polygon, entry_full, size, tiles_x, width, height
                         t_cnt[i] = m + 1
         if opaque and changed:
             stale = True
-    out_dropped[t] = dropped
+    out.dropped[t] = dropped
+    if out.fused:
+        box_subarea((tx0, ty0, tx1, ty1), backdrop, frame, background, sh, any_translucent,
+                    out.want_range, sc, out.rgb, out.range_m)
+    else:
+        _write_store(tx0, ty0, tx1, ty1, backdrop, frame, background, out, sc)
 
-    kx, ky, k0 = horizon[0], horizon[1], horizon[2]
-    sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
-    if fused:
-        # A sub-area whose every sample sees one thing and nothing translucent (open sky,
-        # open ground, the inside of a large face) is one colour: fill it without shading.
-        uniform = o_id[0]
+
+@njit(cache=True, inline="always")
+def _start_store(tx0, ty0, tx1, ty1, s_count, n, background, sc):
+    """Clear the sub-area's store; with a background, every sample it covers starts out
+    holding it. Returns how many samples hold an opaque feature. Only the identities need
+    clearing: 1/z and layer are read only where an identity is set."""
+    covered = 0
+    if background.on:
+        # The terrain is the first opaque feature of every sample it covers; its layer is
+        # below every polygon's, so a polygon at exactly its depth is seen.
+        tw = tx1 - tx0
+        for y in range(ty0, ty1):
+            for x in range(tx0, tx1):
+                base = ((y - ty0) * tw + (x - tx0)) * s_count
+                for s in range(s_count):
+                    iz = background.inv_z[y, x, s]
+                    if iz > 0.0:
+                        sc.o_id[base + s] = BACKGROUND_ID
+                        sc.o_iz[base + s] = iz
+                        sc.o_lay[base + s] = -1
+                        covered += 1
+                    else:
+                        sc.o_id[base + s] = -1
+    else:
         for i in range(n):
-            if o_id[i] != uniform or (any_translucent and t_cnt[i] != 0):
-                uniform = _MIXED
-                break
-        if uniform < 0 and uniform != _MIXED:
-            uniform = background if background != 0 else _MIXED
-        if air[0] != 0.0 or air[F_ON] != 0.0 or cloud_on:
-            uniform = _MIXED  # hazed, fogged or clouded colours vary with range
-        if uniform != _MIXED and not want_range:
-            if uniform >= 0:
-                cr, cg, cb = colour[uniform, 0], colour[uniform, 1], colour[uniform, 2]
-            elif uniform == EARTH_ID:
-                cr, cg, cb = earth[0], earth[1], earth[2]
-            else:
-                cr, cg, cb = sky[0], sky[1], sky[2]
-            for y in range(ty0, ty1):
-                for x in range(tx0, tx1):
-                    out_rgb[y, x, 0] = cr
-                    out_rgb[y, x, 1] = cg
-                    out_rgb[y, x, 2] = cb
-            return
-        _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon,
-                    mapping, background, want_range, o_iz, o_id, t_iz, t_id, t_cnt,
-                    any_translucent, opacity, colour, sky, earth, dz_row, height_above, out_rgb,
-                    out_range, bg_on, bg_rgb, bg_range, air, cloud_on, cloud)
-        return
+            sc.o_id[i] = -1
+    return covered
+
+
+@borrowing
+def _write_store(tx0, ty0, tx1, ty1, backdrop, frame, background, out, sc):
+    """Copy the sub-area's store into the frame's sample store (out.opaque, .trans, .trans_count),
+    naming what an uncovered sample sees, and each pixel's nearest polygon range."""
+    tw = tx1 - tx0
+    s_count = frame.offsets_fixed.shape[0]
+    kx, ky, k0 = frame.horizon[0], frame.horizon[1], frame.horizon[2]
+    m = frame.mapping
     for y in range(ty0, ty1):
-        sy_row = (y * subpixel) * inv_sub
         for x in range(tx0, tx1):
             base = ((y - ty0) * tw + (x - tx0)) * s_count
             near_range = np.inf
             for s in range(s_count):
                 i = base + s
-                f = o_id[i]
-                if f < 0 and bg_on:
+                f = sc.o_id[i]
+                if f < 0 and background.on:
                     f = BACKGROUND_ID  # resolve reads its colour and range from the Background
                 elif f < 0:
-                    if background != 0:
-                        f = background
+                    if backdrop != 0:
+                        f = backdrop
                     else:
-                        sx = (x * subpixel + off_fixed[s, 0]) * inv_sub
-                        sy = sy_row + off_fixed[s, 1] * inv_sub
+                        sx, sy = sample_point(frame, x, y, s)
                         f = EARTH_ID if kx * sx + ky * sy + k0 < 0.0 else SKY_ID
-                elif want_range:
-                    sx = (x * subpixel + off_fixed[s, 0]) * inv_sub
-                    sy = sy_row + off_fixed[s, 1] * inv_sub
+                elif out.want_range:
+                    sx, sy = sample_point(frame, x, y, s)
                     # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
-                    rx = (sx - sx_off) / sx_scale
-                    ry = (sy - sy_off) / sy_scale
-                    near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) / o_iz[i])
-                out_opaque[y, x, s] = f
-                if any_translucent:
-                    m = t_cnt[i]
-                    out_count[y, x, s] = m
-                    for q in range(m):
-                        out_trans[y, x, s, q] = t_id[i, q]
-            if want_range:
-                out_range[y, x] = near_range
+                    rx = (sx - m[1]) / m[0]
+                    ry = (sy - m[3]) / m[2]
+                    near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) / sc.o_iz[i])
+                out.opaque[y, x, s] = f
+                if out.any_translucent:
+                    cnt = sc.t_cnt[i]
+                    out.trans_count[y, x, s] = cnt
+                    for q in range(cnt):
+                        out.trans[y, x, s, q] = sc.t_id[i, q]
+            if out.want_range:
+                out.range_m[y, x] = near_range
 
 
 @njit(cache=True, inline="always")
-def _row_span(n_edges, s0, ia, ib, ic, bias, e_step, px0, py, span):
+def _row_span(exact, s0, n_edges, e_step, px0, py, span):
     """(first, last) k in 0..span with the sample at px0 + k * SUBPIXEL, py inside every edge
     (first > last if none): the covered run of one row of samples, solved exactly per edge.
 
+    exact: (ia, ib, ic, bias), the integer edge functions; edges s0 .. s0 + n_edges - 1.
     Edge j's value at the k-th sample, less its top-left bias, is e0 + step * k in integers
-    (step = ia * SUBPIXEL), inside iff >= 0, so each edge bounds k from one side.
+    (step = ia * SUBPIXEL, e_step), inside iff >= 0, so each edge bounds k from one side.
     """
+    ia, ib, ic, bias = exact
     klo = 0
     khi = span
     for j in range(n_edges):
@@ -356,17 +359,25 @@ def _row_span(n_edges, s0, ia, ib, ic, bias, e_step, px0, py, span):
     return klo, khi
 
 
-@njit(cache=True)
-def _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, tw, s_count,
-                  off_fixed, subpixel, inv_sub, ia, ib, ic, bias, o_iz, o_id, o_lay, e_step):
+@borrowing
+def _cover_opaque(p, full, plane, rows, box, origin, exact, off_fixed, sc):
     """Depth-test one opaque polygon into the store of a sub-area with no translucency.
 
-    Returns the number of samples newly covered, or -1 if no sample changed.
+    plane: (a, b, c, layer), 1/z = a sx + b sy + c; rows: (s0, s1), its edges; box: (lx0,
+    lx1, ly0, ly1) the pixels of the sub-area its bounds reach; origin: (tx0, ty0, tw) of the
+    sub-area. Returns the number of samples newly covered, or -1 if no sample changed.
     """
-    n_edges = s1 - s0
+    a, b, c, lay = plane
+    s0 = rows[0]
+    n_edges = rows[1] - s0
+    lx0, lx1, ly0, ly1 = box
+    tx0, ty0, tw = origin
+    s_count = off_fixed.shape[0]
+    inv_sub = 1.0 / SUBPIXEL
+    o_iz, o_id, o_lay, e_step = sc.o_iz, sc.o_id, sc.o_lay, sc.e_step
     if not full:
         for j in range(n_edges):
-            e_step[j] = ia[s0 + j] * subpixel
+            e_step[j] = exact[0][s0 + j] * SUBPIXEL
     added = 0
     changed = False
     span = lx1 - lx0
@@ -374,18 +385,17 @@ def _cover_opaque(p, full, a, b, c, lay, s0, s1, lx0, lx1, ly0, ly1, tx0, ty0, t
         ox = off_fixed[s, 0]
         oy = off_fixed[s, 1]
         for y in range(ly0, ly1 + 1):
-            py = y * subpixel + oy
+            py = y * SUBPIXEL + oy
             klo = 0
             khi = span
             if not full:
-                klo, khi = _row_span(n_edges, s0, ia, ib, ic, bias, e_step, lx0 * subpixel + ox,
-                                     py, span)
+                klo, khi = _row_span(exact, s0, n_edges, e_step, lx0 * SUBPIXEL + ox, py, span)
                 if klo > khi:
                     continue
             row = ((y - ty0) * tw - tx0) * s_count + s
             fy = b * (py * inv_sub) + c
             for x in range(lx0 + klo, lx0 + khi + 1):
-                px = x * subpixel + ox
+                px = x * SUBPIXEL + ox
                 i = row + x * s_count
                 # Same expression, same order as in _tile: a * sx + (b * sy + c) is evaluated
                 # identically for every feature, so coplanar ties stay exact.
@@ -412,7 +422,7 @@ def _subarea_rect(t, tiles_x, size, width, height):
 
 
 @njit(cache=True, inline="always")
-def _background(tx0, ty0, size, horizon):
+def _backdrop(tx0, ty0, size, horizon):
     """EARTH_ID or SKY_ID if every point of the sub-area sees that behind the features, 0 if the
     horizon crosses it: the horizon value is affine, so its sign over the sub-area is that of
     its corners when they all agree."""
@@ -428,187 +438,56 @@ def _background(tx0, ty0, size, horizon):
     return 0
 
 
-@njit(cache=True)
-def _fill_background(tx0, ty0, tx1, ty1, background, sky, earth, want_range, out_rgb, out_range):
-    """Fill the sub-area with its background if it has a single one (with ranges: only the
+@borrowing
+def _fill_backdrop(tx0, ty0, tx1, ty1, backdrop, frame, out):
+    """Fill the sub-area with its backdrop if it has a single one (with ranges: only the
     sky, at +inf; the earth's range varies); False if it was not filled."""
-    if background == EARTH_ID and not want_range:
-        cr, cg, cb = earth[0], earth[1], earth[2]
-    elif background == SKY_ID:
-        cr, cg, cb = sky[0], sky[1], sky[2]
+    if backdrop == EARTH_ID and not out.want_range:
+        cr, cg, cb = frame.earth[0], frame.earth[1], frame.earth[2]
+    elif backdrop == SKY_ID:
+        cr, cg, cb = frame.sky[0], frame.sky[1], frame.sky[2]
     else:
         return False
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
-            out_rgb[y, x, 0] = cr
-            out_rgb[y, x, 1] = cg
-            out_rgb[y, x, 2] = cb
-            if want_range:
-                out_range[y, x] = np.inf
+            out.rgb[y, x, 0] = cr
+            out.rgb[y, x, 1] = cg
+            out.rgb[y, x, 2] = cb
+            if out.want_range:
+                out.range_m[y, x] = np.inf
     return True
 
 
-@njit(cache=True)
-def _box_pixels(tx0, ty0, tx1, ty1, tw, s_count, off_fixed, subpixel, inv_sub, horizon, mapping,
-                background, want_range, o_iz, o_id, t_iz, t_id, t_cnt, any_translucent, opacity,
-                colour, sky, earth, dz_row, height_above, out_rgb, out_range, bg_on, bg_rgb,
-                bg_range, air, cloud_on, cloud):
-    """Pixel outputs of one sub-area: each sample shaded (translucent features front to back
-    over the opaque one, or the background: terrain, sky, earth), averaged over the pixel;
-    optionally the range. With haze each polygon sample is hazed by its own range, and with
-    clouds seen through the pixel's cloud if it lies beyond the cloud's entry range."""
-    fogged = air[F_ON] != 0.0
-    by_range = air[0] != 0.0 or fogged or cloud_on
-    kx, ky, k0 = horizon[0], horizon[1], horizon[2]
-    sx_scale, sx_off, sy_scale, sy_off = mapping[0], mapping[1], mapping[2], mapping[3]
-    inv_s = 1.0 / s_count
-    sky_r, sky_g, sky_b = sky[0], sky[1], sky[2]
-    earth_r, earth_g, earth_b = earth[0], earth[1], earth[2]
+@borrowing
+def _copy_background(tx0, ty0, tx1, ty1, background, out):
+    """The sub-area as the background stage painted it (no polygon in it)."""
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
-            base = ((y - ty0) * tw + (x - tx0)) * s_count
-            if not want_range:
-                # Most pixels, even in a busy sub-area, see one thing with every sample (with
-                # haze or clouds: one polygon, seen through the air at the pixel's centre).
-                f0 = o_id[base]
-                same = f0 >= 0 or (background != 0 and not by_range)
-                for s in range(1, s_count):
-                    if o_id[base + s] != f0:
-                        same = False
-                        break
-                if same and any_translucent:
-                    for s in range(s_count):
-                        if t_cnt[base + s] != 0:
-                            same = False
-                            break
-                if same:
-                    if f0 >= 0 and by_range:
-                        iz = 0.0
-                        for s in range(s_count):
-                            iz += o_iz[base + s]
-                        rx = ((x + 0.5) - sx_off) / sx_scale
-                        ry = ((y + 0.5) - sy_off) / sy_scale
-                        ray = math.sqrt(rx * rx + ry * ry + 1.0)
-                        cos_ax = fog_cos(air, rx, ry, ray) if fogged else 0.0
-                        # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
-                        cr, cg, cb = through_air(air, cloud_on, cloud, y, x, ray * s_count / iz,
-                                                 (dz_row[0] * rx + dz_row[1] * ry + dz_row[2]) / ray,
-                                                 cos_ax, colour[f0, 0], colour[f0, 1], colour[f0, 2])
-                        out_rgb[y, x, 0] = cr
-                        out_rgb[y, x, 1] = cg
-                        out_rgb[y, x, 2] = cb
-                    elif f0 >= 0:
-                        out_rgb[y, x, 0] = colour[f0, 0]
-                        out_rgb[y, x, 1] = colour[f0, 1]
-                        out_rgb[y, x, 2] = colour[f0, 2]
-                    elif background == EARTH_ID:
-                        out_rgb[y, x, 0] = earth_r
-                        out_rgb[y, x, 1] = earth_g
-                        out_rgb[y, x, 2] = earth_b
-                    else:
-                        out_rgb[y, x, 0] = sky_r
-                        out_rgb[y, x, 1] = sky_g
-                        out_rgb[y, x, 2] = sky_b
-                    continue
-            r = 0.0
-            g = 0.0
-            b = 0.0
-            near_range = np.inf
-            for s in range(s_count):
-                i = base + s
-                through = 1.0
-                ray = 1.0
-                sin_el = 0.0
-                cos_ax = 0.0
-                if by_range:
-                    rx = ((x * subpixel + off_fixed[s, 0]) * inv_sub - sx_off) / sx_scale
-                    ry = ((y * subpixel + off_fixed[s, 1]) * inv_sub - sy_off) / sy_scale
-                    ray = math.sqrt(rx * rx + ry * ry + 1.0)
-                    sin_el = (dz_row[0] * rx + dz_row[1] * ry + dz_row[2]) / ray  # guard: ray >= 1
-                    if fogged:
-                        cos_ax = fog_cos(air, rx, ry, ray)
-                if any_translucent:
-                    for q in range(t_cnt[i]):
-                        p = t_id[i, q]
-                        a = opacity[p] * through
-                        cr, cg, cb = colour[p, 0], colour[p, 1], colour[p, 2]
-                        if by_range:
-                            # Guard: translucent features are clipped to z >= near > 0 too.
-                            cr, cg, cb = through_air(air, cloud_on, cloud, y, x, ray / t_iz[i, q],
-                                                     sin_el, cos_ax, cr, cg, cb)
-                        r += a * cr
-                        g += a * cg
-                        b += a * cb
-                        through *= 1.0 - opacity[p]
-                f = o_id[i]
-                if f >= 0:
-                    cr, cg, cb = colour[f, 0], colour[f, 1], colour[f, 2]
-                    if by_range:
-                        cr, cg, cb = through_air(air, cloud_on, cloud, y, x, ray / o_iz[i], sin_el,
-                                                 cos_ax, cr, cg, cb)
-                    r += through * cr
-                    g += through * cg
-                    b += through * cb
-                    if want_range:
-                        rx = ((x * subpixel + off_fixed[s, 0]) * inv_sub - sx_off) / sx_scale
-                        ry = ((y * subpixel + off_fixed[s, 1]) * inv_sub - sy_off) / sy_scale
-                        # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
-                        near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) / o_iz[i])
-                    continue
-                if bg_on:
-                    r += through * bg_rgb[y, x, 0]
-                    g += through * bg_rgb[y, x, 1]
-                    b += through * bg_rgb[y, x, 2]
-                    if want_range:
-                        near_range = min(near_range, bg_range[y, x])
-                    continue
-                f = background
-                if f == 0 or (want_range and f == EARTH_ID):
-                    sx = (x * subpixel + off_fixed[s, 0]) * inv_sub
-                    sy = (y * subpixel + off_fixed[s, 1]) * inv_sub
-                    dz = kx * sx + ky * sy + k0
-                    if f == 0:
-                        f = EARTH_ID if dz < 0.0 else SKY_ID
-                    if want_range and f == EARTH_ID:
-                        rx = (sx - sx_off) / sx_scale
-                        ry = (sy - sy_off) / sy_scale
-                        ez = dz_row[0] * rx + dz_row[1] * ry + dz_row[2]
-                        # Guard: ez < 0 for earth samples (the same line as dz, in tangents);
-                        # at the horizon rounding may give 0 or a tiny positive: range -> huge.
-                        near_range = min(near_range, math.sqrt(rx * rx + ry * ry + 1.0) * height_above / max(-ez, 1e-300))
-                # Scalars, not an array chosen per sample: that would cost a reference-count
-                # update (an atomic) per sample.
-                if f == EARTH_ID:
-                    r += through * earth_r
-                    g += through * earth_g
-                    b += through * earth_b
-                else:
-                    r += through * sky_r
-                    g += through * sky_g
-                    b += through * sky_b
-            out_rgb[y, x, 0] = r * inv_s
-            out_rgb[y, x, 1] = g * inv_s
-            out_rgb[y, x, 2] = b * inv_s
-            if want_range:
-                out_range[y, x] = near_range
+            out.rgb[y, x, 0] = background.rgb[y, x, 0]
+            out.rgb[y, x, 1] = background.rgb[y, x, 1]
+            out.rgb[y, x, 2] = background.rgb[y, x, 2]
+            if out.want_range:
+                out.range_m[y, x] = background.range_m[y, x]
 
 
 @njit(cache=True, parallel=True)
-def coverage_kernel(tile_start, entry_polygon, entry_full, size, tiles_x, width, height,
-                    poly_start, ia, ib, ic, bias, x0, x1, y0, y1, off_fixed, subpixel, out_count):
+def coverage_kernel(bins, screen, edges, off_fixed, out_count):
     """How many polygons cover each sample: the same lists as visibility_kernel, but each
     sample decided by the direct edge test (_inside), independently of its row solver."""
-    n_tiles = tile_start.shape[0] - 1
+    n_tiles = bins.start.shape[0] - 1
     s_count = off_fixed.shape[0]
+    height, width = out_count.shape[0], out_count.shape[1]
+    exact = (edges.ia, edges.ib, edges.ic, edges.bias)
     for t in prange(n_tiles):
-        tx0, ty0, tx1, ty1 = _subarea_rect(t, tiles_x, size, width, height)
-        for k in range(tile_start[t], tile_start[t + 1]):
-            p = entry_polygon[k]
-            full = entry_full[k]
-            for y in range(max(y0[p], ty0), min(y1[p], ty1 - 1) + 1):
-                for x in range(max(x0[p], tx0), min(x1[p], tx1 - 1) + 1):
+        tx0, ty0, tx1, ty1 = _subarea_rect(t, bins.tiles_x, bins.size, width, height)
+        for k in range(bins.start[t], bins.start[t + 1]):
+            p = bins.polygon[k]
+            full = bins.full[k]
+            rows = (screen.start[p], screen.start[p + 1])
+            for y in range(max(edges.y0[p], ty0), min(edges.y1[p], ty1 - 1) + 1):
+                for x in range(max(edges.x0[p], tx0), min(edges.x1[p], tx1 - 1) + 1):
                     for s in range(s_count):
-                        px = x * subpixel + off_fixed[s, 0]
-                        py = y * subpixel + off_fixed[s, 1]
-                        if full or _inside(px, py, poly_start[p], poly_start[p + 1], ia, ib, ic, bias):
+                        px = x * SUBPIXEL + off_fixed[s, 0]
+                        py = y * SUBPIXEL + off_fixed[s, 1]
+                        if full or _inside(px, py, rows, exact):
                             out_count[y, x, s] += 1

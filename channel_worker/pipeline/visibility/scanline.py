@@ -1,10 +1,10 @@
-"""Scan-line hidden-surface visibility, one sample per pixel centre (seed 003).
+"""Scan-line hidden-surface visibility, one sample per pixel centre (ARL Systems Note 77).
 
 ARL Systems Note 77 (Sandor and Jost, 1981), "A scan line algorithm for computer generated
-flight visuals", as a second renderer beside the sub-area one (seed 000), kept as an
+flight visuals", as a second renderer beside the sub-area one (EP 0611020), kept as an
 independent cross-check: it reaches the same per-pixel answer by a different route.
 
-- Edge generation (seed 3.3, 3.5, 3.6): every polygon edge becomes an EDGE LIST entry with its
+- Edge generation (Note 77, 3.3, 3.5, 3.6): every polygon edge becomes an EDGE LIST entry with its
   first and last scan line (jmin, jmax), its orientation (ENTER where the scan enters the face,
   EXIT where it leaves; horizontal edges are a third kind here, a GATE that keeps or removes the
   whole line) and its face. The PRIORITY LIST orders the faces by centroid depth, nearest first.
@@ -19,14 +19,14 @@ independent cross-check: it reaches the same per-pixel answer by a different rou
 - Horizon synthesis (3.7): the sky is the whole screen at the lowest priority and the earth a
   polygon bounded by the horizon line above it; every face is in front of both.
 
-Where this implementation is stricter than the seed (docs/scanline.md): intercepts are exact
+Where this implementation is stricter than the Note (docs/scanline.md): intercepts are exact
 integer quotients on the 1/SUBPIXEL grid (remainder carried, not a 9-bit fraction), so a face
 covers a pixel centre exactly when the exact edge test with the top-left rule says so, shared
 edges leave no crack and no double cover, and ties at one pixel are decided by that rule; the
 ON/OFF flag is a count, so a face is on only inside all of its active half-planes (and a face
 that snapping left non-convex has every edge active over its whole height); faces
 sharing one plane (scene "on") are kept together in the PRIORITY LIST, higher layer first, the
-seed's precedence of runway markings over the runway (2.1).
+Note's precedence of runway markings over the runway (2.1).
 
 Hidden surfaces are decided per face, not per pixel: where the centroid order of two
 overlapping faces is not their depth order at a pixel (interpenetrating or cyclically
@@ -51,6 +51,9 @@ from ._scanline_kernels import (
     STAT_MULTIPLE,
     STAT_ON_MAX,
     STAT_OVERFLOW,
+    EdgeList,
+    PriorityList,
+    ScanOut,
     edge_list_kernel,
     scan_frame_kernel,
 )
@@ -90,21 +93,16 @@ def scanline_visibility(screen: ScreenPolygons, frame: FrameConstants, options: 
     rank = _priority_list(screen)
     # INCIDENCE LIST: edges in the order the scan meets them (stable, so the same frame
     # always gives the same list).
-    incidence = np.argsort(edges["jmin"], kind="stable").astype(np.int64)
-    opaque = np.empty((h, w, 1), np.int32)
-    trans = np.zeros((h, w, 1, k), np.int32)
-    count = np.zeros((h, w, 1), np.uint8)
-    polygon_range = np.empty((h, w), np.float32)
+    incidence = np.argsort(edges.jmin, kind="stable").astype(np.int64)
+    out = ScanOut(np.empty((h, w, 1), np.int32), np.zeros((h, w, 1, k), np.int32),
+                  np.zeros((h, w, 1), np.uint8), np.empty((h, w), np.float32))
     n_bands = max(1, min(h, BANDS_PER_THREAD * numba.get_num_threads()))
     band_stats = np.zeros((n_bands, N_STATS), np.int64)
-    scan_frame_kernel(edges["kind"], edges["poly"], edges["jmin"], edges["jmax"], edges["num0"],
-                      edges["den"], edges["step"], edges["step_q"], edges["step_r"], incidence,
-                      rank, screen.opacity >= 1.0, np.ascontiguousarray(screen.inv_z, np.float64),
-                      frame.horizon, frame.mapping, SUBPIXEL, n_bands,
-                      opaque, trans, count, polygon_range, band_stats)
+    faces = PriorityList(rank, screen.opacity >= 1.0, np.ascontiguousarray(screen.inv_z, np.float64))
+    scan_frame_kernel(edges, incidence, faces, frame, n_bands, out, band_stats)
     totals = band_stats.sum(axis=0)
     counters.update({
-        "edges": int(edges["kind"].shape[0]),
+        "edges": int(edges.kind.shape[0]),
         "nonconvex_faces": nonconvex,
         "edge_crossings": int(totals[STAT_CROSSINGS]),
         "active_max": int(band_stats[:, STAT_ACTIVE_MAX].max()),
@@ -114,15 +112,15 @@ def scanline_visibility(screen: ScreenPolygons, frame: FrameConstants, options: 
         "translucent_overflow": int(totals[STAT_OVERFLOW]),
         "translucent_dropped": int(totals[STAT_DROPPED]),
     })
-    return SampleBuffer(offsets=CENTRE_OFFSETS.copy(), opaque=opaque, translucent=trans,
-                        translucent_count=count,
-                        polygon_range=polygon_range if options.with_range else None)
+    return SampleBuffer(offsets=CENTRE_OFFSETS.copy(), opaque=out.opaque, translucent=out.trans,
+                        translucent_count=out.trans_count,
+                        polygon_range=out.range_m if options.with_range else None)
 
 
-def _edge_list(screen: ScreenPolygons, height: int) -> tuple[dict[str, np.ndarray], int]:
+def _edge_list(screen: ScreenPolygons, height: int) -> tuple[EdgeList, int]:
     """The EDGE LIST (edge_list_kernel) as arrays, and how many faces had to be extended."""
     nv = screen.fixed.shape[0]
-    n = screen.count
+    n = screen.polygon_count
     kind = np.empty(nv, np.int64)
     poly = np.empty(nv, np.int64)
     jmin = np.empty(nv, np.int64)
@@ -132,30 +130,29 @@ def _edge_list(screen: ScreenPolygons, height: int) -> tuple[dict[str, np.ndarra
     step = np.empty(nv, np.int64)
     extended = np.zeros(n, np.int64)
     m = edge_list_kernel(np.ascontiguousarray(screen.fixed, np.int64),
-                         np.ascontiguousarray(screen.start, np.int64), height, SUBPIXEL,
-                         kind, poly, jmin, jmax, num0, den, step, extended)
+                         np.ascontiguousarray(screen.start, np.int64), height,
+                         (kind, poly, jmin, jmax, num0, den, step), extended)
     den = den[:m]
     step = step[:m]
     # The per-line increment as quotient and remainder (floor division: 0 <= step_r < den).
     # Guard: den >= 1 for every edge (S |dy| with dy != 0, or 1 for a horizontal edge).
     step_q = np.floor_divide(step, den)
-    edges = {"kind": kind[:m], "poly": poly[:m], "jmin": jmin[:m], "jmax": jmax[:m],
-             "num0": num0[:m], "den": den, "step": step, "step_q": step_q,
-             "step_r": step - step_q * den}
+    edges = EdgeList(kind[:m], poly[:m], jmin[:m], jmax[:m], num0[:m], den, step, step_q,
+                     step - step_q * den)
     return edges, int(extended.sum())
 
 
 def _priority_list(screen: ScreenPolygons) -> np.ndarray:
     """Per face its index in the PRIORITY LIST (0 is seen in front of everything else).
 
-    The seed orders faces by the distance of their centroid; here by 1/z of the screen plane
+    The Note orders faces by the distance of their centroid; here by 1/z of the screen plane
     at the mean of the snapped vertices (larger is nearer). Faces on one plane bit for bit (a
     runway and its markings, scene "on") are one surface: they all take the nearest centroid
     1/z among them, so they sit together in the list and their layer orders them, higher
-    first, as the seed's precedence puts markings over the runway. Remaining ties: the higher
+    first, as the Note's precedence puts markings over the runway. Remaining ties: the higher
     layer first, then the lower polygon index.
     """
-    n = screen.count
+    n = screen.polygon_count
     if n == 0:
         return np.zeros(0, np.int64)
     counts = np.diff(screen.start)

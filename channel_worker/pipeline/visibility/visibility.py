@@ -1,4 +1,4 @@
-"""Multi-sample visibility with opaque and translucent features (seed 000, EP 0611020).
+"""Multi-sample visibility with opaque and translucent features (EP 0611020).
 
 For every sampling point of every sub-area, the features of that sub-area's list are tested in
 turn (no edge test where the sub-area is fully covered), and a small per-sample store keeps:
@@ -39,9 +39,10 @@ from channel_worker.pipeline.contract import (
     ScreenPolygons,
     rgb_array,
 )
+from channel_worker.pipeline.resolve.shading import shading
 from services.rig.options import RenderOptions
 
-from ._visibility_kernels import coverage_kernel, visibility_kernel
+from ._visibility_kernels import StoreOut, coverage_kernel, visibility_kernel
 
 
 def sample_store(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameConstants,
@@ -70,8 +71,11 @@ def sample_store(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameC
     count = np.empty((h, w, s), np.uint8) if any_translucent else np.zeros((h, w, s), np.uint8)
     polygon_range = np.empty((h, w) if with_range else (1, 1), np.float32)
     opaque = np.empty((h, w, s), np.int32)
-    _run(screen, edges, bins, frame, k, any_translucent, with_range, opaque, trans, count,
-         polygon_range, False, np.empty((1, 1, 3), np.float32), background, counters)
+    n_tiles = bins.tiles_x * bins.tiles_y
+    out = StoreOut(False, with_range, any_translucent, opaque, trans, count, polygon_range,
+                   np.empty((1, 1, 3), np.float32), np.zeros(n_tiles, np.int64),
+                   np.zeros(n_tiles, np.int64))
+    _run(screen, edges, bins, frame, background, out, counters)
     return SampleBuffer(offsets=frame.offsets, opaque=opaque, translucent=trans,
                         translucent_count=count,
                         polygon_range=polygon_range if with_range else None)
@@ -93,35 +97,28 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: Fram
     h, w = frame.height, frame.width
     rgb = rgb_array(out, h, w)
     range_m = np.empty((h, w) if options.with_range else (1, 1), np.float32)
-    _run(screen, edges, bins, frame, k, bool((screen.opacity < 1.0).any()), options.with_range,
-         np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),
-         np.empty((1, 1, 1), np.uint8), range_m, True, rgb, background, counters)
+    n_tiles = bins.tiles_x * bins.tiles_y
+    pixels = StoreOut(True, options.with_range, bool((screen.opacity < 1.0).any()),
+                      np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),
+                      np.empty((1, 1, 1), np.uint8), range_m, rgb, np.zeros(n_tiles, np.int64),
+                      np.zeros(n_tiles, np.int64))
+    _run(screen, edges, bins, frame, background, pixels, counters)
     return Image(rgb=rgb, range_m=range_m if options.with_range else None)
 
 
-def _run(screen, edges, bins, frame, k, any_translucent, with_range, opaque, trans, count,
-         polygon_range, fused, rgb, background, counters) -> None:
-    n_tiles = bins.tiles_x * bins.tiles_y
-    dropped = np.zeros(n_tiles, np.int64)
-    stopped = np.zeros(n_tiles, np.int64)
+def _run(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameConstants,
+         background: Background, out: StoreOut, counters: dict[str, int]) -> None:
     # Rows of sub-areas are handed to threads one at a time: their cost varies a lot.
     previous = numba.set_parallel_chunksize(1)
     try:
-        visibility_kernel(bins.start, bins.polygon, bins.full, bins.size, bins.tiles_x,
-                          frame.width, frame.height, screen.start, edges.ia, edges.ib, edges.ic,
-                          edges.bias, edges.x0, edges.x1, edges.y0, edges.y1,
-                          edges.nearest_inv_z, screen.inv_z, screen.opacity,
-                          screen.layer.astype(np.int32), frame.offsets_fixed, SUBPIXEL,
-                          frame.horizon, frame.mapping, any_translucent, with_range, opaque,
-                          trans, count, polygon_range, dropped, stopped, fused, screen.colour,
-                          frame.sky, frame.earth, frame.dz_row, frame.height_above, rgb,
-                          background.on, background.rgb, background.inv_z, background.range_m,
-                          background.air, background.cloud_on, background.cloud)
+        # Layers as int32, like the store's: one integer type in every depth comparison.
+        visibility_kernel(bins, screen._replace(layer=screen.layer.astype(np.int32)), edges, frame,
+                          background, shading(screen, frame, background), out)
     finally:
         numba.set_parallel_chunksize(previous)
     counters.update(bins.counters())
-    counters["translucent_dropped"] = int(dropped.sum())
-    counters["entries_skipped_by_depth"] = int(stopped.sum())
+    counters["translucent_dropped"] = int(out.dropped.sum())
+    counters["entries_skipped_by_depth"] = int(out.stopped.sum())
 
 
 def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np.ndarray, *,
@@ -136,9 +133,7 @@ def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np
     edges = setup_edges(screen, width, height)
     bins = bin_features(edges, screen.start, width, height, subarea)
     out = np.zeros((height, width, offsets.shape[0]), np.int32)
-    coverage_kernel(bins.start, bins.polygon, bins.full, bins.size, bins.tiles_x, width, height,
-                    screen.start, edges.ia, edges.ib, edges.ic, edges.bias,
-                    edges.x0, edges.x1, edges.y0, edges.y1, _offsets_fixed(offsets), SUBPIXEL, out)
+    coverage_kernel(bins, screen, edges, _offsets_fixed(offsets), out)
     return out
 
 

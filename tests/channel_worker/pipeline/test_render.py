@@ -29,7 +29,8 @@ def test_box_in_front_has_the_right_range(make_scene, box_model_factory):
     # earth below: range = height / sin(depression) for the bottom-centre pixel
     fy = math.tan(math.radians(30)) * 48 / 64
     ty = fy * (24 - 47.5) / 24
-    assert img.range_m[47, 32] == pytest.approx(5.0 * math.sqrt(1 + ty * ty + (0.5 / 32 * math.tan(math.radians(30))) ** 2) / -ty, rel=1e-3)
+    expected = 5.0 * math.sqrt(1 + ty * ty + (0.5 / 32 * math.tan(math.radians(30))) ** 2) / -ty
+    assert img.range_m[47, 32] == pytest.approx(expected, rel=1e-3)
 
 
 @pytest.mark.parametrize("hpr", [(0, 90, 0), (0, -90, 0), (359.5, 0, 180), (123, 89.999, 77), (0, -90, 180)])
@@ -48,7 +49,8 @@ def test_looking_straight_down_sees_only_earth_at_the_height(make_scene, box_mod
 
 
 def test_1000_km_from_origin_matches_the_origin(make_scene, box_model_factory):
-    near = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 10, 2, 3), RenderOptions(samples=4))
+    near = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 10, 2, 3),
+                        RenderOptions(samples=4))
     far_db = scene(make_scene, box_model_factory, origin=(1.0e6, -1.0e6))
     far = render_frame(far_db, CH, Eyepoint.of(1.0e6, -1.0e6, 5, 10, 2, 3), RenderOptions(samples=4))
     np.testing.assert_allclose(far.rgb, near.rgb, atol=1e-6)
@@ -56,7 +58,8 @@ def test_1000_km_from_origin_matches_the_origin(make_scene, box_model_factory):
 
 
 def test_eye_below_earth_is_clamped_not_nan(make_scene, box_model_factory):
-    img = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, -3, 0, 0, 0), RenderOptions(samples=1))
+    img = render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, -3, 0, 0, 0),
+                       RenderOptions(samples=1))
     assert np.isfinite(img.rgb).all()
     assert not np.isnan(img.range_m).any()
 
@@ -112,7 +115,8 @@ def test_fused_box_path_equals_sample_store_and_resolve(samples, with_range):
 
 def test_unknown_sample_pattern_is_named(make_scene, box_model_factory):
     with pytest.raises(ValueError, match="samples: unknown pattern 'foo'"):
-        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), RenderOptions(samples="foo"))
+        render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0),
+                     RenderOptions(samples="foo"))
     with pytest.raises(ValueError, match="samples: 3 has no pattern"):
         render_frame(scene(make_scene, box_model_factory), CH, Eyepoint.of(0, 0, 5, 0, 0, 0), RenderOptions(samples=3))
 

@@ -192,7 +192,7 @@ def test_grazing_rays_along_a_plane(clearance):
     d = np.stack([np.cos(depression) * np.sin(azimuth), np.cos(depression) * np.cos(azimuth),
                   -np.sin(depression)], -1)
     d = np.concatenate([d, [[0.6, 0.8, 0.0]]])  # parallel to the plane, above it: never hits
-    rgb, rng, hit = reference_rays(db, eye_rel, d)
+    _rgb, rng, hit = reference_rays(db, eye_rel, d)
     expect_hit, expect = analytic_plane(eye_rel, d, 0.0, 0.0, h, 200.0)
     np.testing.assert_array_equal(hit, expect_hit)
     assert not hit[-1]

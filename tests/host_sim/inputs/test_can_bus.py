@@ -62,7 +62,7 @@ def test_controls_arrive_and_bad_frames_are_counted_by_cause(bus):
                                     park_brake=1.0)
     status = src.status()
     assert status.accepted == len(good)
-    assert status.rejected == {**{c: 0 for c in CAUSES}, "unknown_identifier": 2, "bad_length": 1,
+    assert status.rejected == {**dict.fromkeys(CAUSES, 0), "unknown_identifier": 2, "bad_length": 1,
                                "wrong_data_type": 1, "not_finite": 1, "out_of_range": 1, "bad_frame": 1}
     assert "remote frame" in status.last_rejection
     assert status.counters["frames"] == len(good) + len(bad)

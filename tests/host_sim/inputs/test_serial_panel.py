@@ -44,7 +44,8 @@ def test_damage_is_counted_and_the_good_frames_around_it_are_read(panel):
     bad_crc = bytearray(encode_frame(1, [(400, 0.9)]))
     bad_crc[-1] ^= 1
     port.write(b"noise" + encode_frame(0, [(400, 0.1)]) + bytes(bad_crc) + encode_frame(2, [(401, 0.2), (999, 0.0)])
-               + encode_frame(4, [(402, 0.0)]) + encode_frame(5, payload=b"\x01\x90\x00") + encode_frame(6, [(400, 0.3)])
+               + encode_frame(4, [(402, 0.0)]) + encode_frame(5, payload=b"\x01\x90\x00")
+               + encode_frame(6, [(400, 0.3)])
                + encode_frame(7, [(400, 0.0)])[:6])  # the last frame is cut short
     src.poll()
     status = src.status()

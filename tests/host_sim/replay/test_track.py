@@ -39,7 +39,7 @@ def test_positions_pass_through_the_records_with_a_continuous_velocity():
     t = np.array([0.0, 1.0, 2.5, 3.0, 5.0])
     p = np.stack([t * 40.0, 100.0 * np.sin(t), 3.0 + t ** 2], axis=1)
     track = build_track(world_log(t, p, [(0, 0, 0)] * 5))
-    for ti, pi in zip(t, p):
+    for ti, pi in zip(t, p, strict=True):
         np.testing.assert_allclose(track.sample(ti).position, pi, atol=1e-9)
     eps = 1e-6
     for ti in t[1:-1]:  # left and right velocities agree at the records

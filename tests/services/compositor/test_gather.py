@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-from ig.v1 import compositor_pb2, frame_pb2
 
+from ig.v1 import compositor_pb2, frame_pb2
 from services.compositor.gather import FrameGatherer, InvalidSubmission
 from services.compositor.stitch import stitch
 
@@ -125,7 +125,7 @@ def test_an_open_frame_times_out_as_missing_channel():
 
 
 def test_an_image_of_another_run_is_refused():
-    g, done = gatherer()
+    g, _done = gatherer()
     g.on_published(published(0))
     stale = image(0, "left")
     stale.run_id = "old"
@@ -153,7 +153,7 @@ def test_a_new_run_starts_frame_numbers_again():
 
 
 def test_end_of_run_finalises_open_frames():
-    g, done = gatherer()
+    g, _done = gatherer()
     g.on_published(published(0))
     g.on_published(published(1))
     g.submit(image(1, "left"))
@@ -164,7 +164,8 @@ def test_end_of_run_finalises_open_frames():
 
 @pytest.mark.parametrize("request_,cause,pattern", [
     (image(0, "bogus"), "unknown_channel", r"channel_name: 'bogus' is not a channel of the rig"),
-    (image(0, "left", eyepoint=frame_pb2.Eyepoint(x=float("nan"))), "non_finite_eyepoint", r"eyepoint.x: nan is not finite"),
+    (image(0, "left", eyepoint=frame_pb2.Eyepoint(x=float("nan"))), "non_finite_eyepoint",
+     r"eyepoint.x: nan is not finite"),
 ])
 def test_bad_submissions_are_refused_and_counted(request_, cause, pattern):
     g, done = gatherer()

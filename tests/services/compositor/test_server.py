@@ -5,8 +5,8 @@ import json
 import grpc
 import numpy as np
 import pytest
-from ig.v1 import compositor_pb2, compositor_pb2_grpc, frame_pb2
 
+from ig.v1 import compositor_pb2, compositor_pb2_grpc, frame_pb2
 from services.compositor.server import Compositor, CompositorServicer
 from services.rig.grpc_util import add_health, check_health, make_channel, make_server
 from services.rig.image_io import read_image

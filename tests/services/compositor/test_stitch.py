@@ -10,7 +10,7 @@ from services.rig.image_io import read_image
 
 def complete(n, heights=(2, 2)):
     images = tuple(ChannelImage(name, np.full((h, 3, 3), i, "<f2"), (1.0, 2.0, 3.0, 90.0, 1.0, -1.0), 0.01, 100.0, 0)
-                   for i, (name, h) in enumerate(zip(("a", "b"), heights)))
+                   for i, (name, h) in enumerate(zip(("a", "b"), heights, strict=True)))
     return CompleteFrame(n, n / 10, (1.0, 2.0, 3.0, 90.0, 1.0, -1.0), 100.0, images)
 
 

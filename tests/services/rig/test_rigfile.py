@@ -1,8 +1,11 @@
 """Rig files."""
 
+import tomllib
+
 import pytest
 
-from services.rig.rigfile import RigError, channel_spec, default_rig_path, load_rig, parse_rig
+from services.rig.options import RenderOptions
+from services.rig.rigfile import RigError, channel_spec, default_rig_path, load_rig, parse_rig, rig_toml
 
 ROOT = default_rig_path().parents[3]
 
@@ -45,9 +48,14 @@ def doc():
      r"channels\[1\].height: 40 differs from channels\[0\].height 48"),
     (lambda d: d["compositor"].update(address="127.0.0.1:1"),
      r"compositor.address: '127.0.0.1:1' is already used by host.address"),
-    (lambda d: d["channels"][0].update(address="127.0.0.1:0"), r"channels\[0\].address: '127.0.0.1:0' is not host:port"),
+    (lambda d: d["channels"][0].update(address="127.0.0.1:0"),
+     r"channels\[0\].address: '127.0.0.1:0' is not host:port"),
     (lambda d: d.update(extra=1), r"extra: unknown key"),
     (lambda d: d.pop("channels"), r"channels: expected at least one"),
+    (lambda d: d.update(render={"sample": 4}), r"r.toml: render.sample: unknown render option 'sample'"),
+    (lambda d: d.update(render={"terrain_bias": 7}),
+     r"r.toml: render.terrain_bias: expected an integer in -4..4, got 7"),
+    (lambda d: d.update(render=4), r"r.toml: render: expected a table of render options"),
 ])
 def test_bad_rig_names_key_and_value(mutate, pattern):
     d = doc()
@@ -81,3 +89,15 @@ def test_invalid_toml(tmp_path):
     p.write_text("[host\n")
     with pytest.raises(RigError, match="invalid TOML"):
         load_rig(p)
+
+
+def test_the_render_table_sets_every_workers_options_and_round_trips():
+    d = doc()
+    assert parse_rig(d).render == RenderOptions()
+    d["render"] = {"samples": 16, "filter": "tent", "haze": False, "terrain_bias": -1}
+    rig = parse_rig(d, source="r.toml")
+    assert rig.render == RenderOptions(samples="d3d16", filter="tent", haze=False, terrain_bias=-1)
+    again = parse_rig(tomllib.loads(rig_toml(rig)))
+    assert again == parse_rig(tomllib.loads(rig_toml(rig)))
+    assert again.render == rig.render and again.channels == rig.channels
+    assert "[render]" not in rig_toml(parse_rig(doc()))  # defaults are not written out

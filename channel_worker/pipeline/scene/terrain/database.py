@@ -1,10 +1,10 @@
-"""The voxel terrain database of seed 002: pages of voxels at several resolution levels.
+"""The voxel terrain database of JP H07-76990: pages of voxels at several resolution levels.
 
 Layout (docs/terrain-database.md):
 
 - A 2-D ground grid of square voxels. Level 0 voxels are ``spacing_m`` wide; level L voxels are
   ``spacing_m * 2**L`` wide and are the 2 x 2 average of level L - 1.
-- Every voxel holds its four corner heights and four corner colours (seed 002: "these four
+- Every voxel holds its four corner heights and four corner colours (JP H07-76990: "these four
   intensity and height values are stored with each voxel to avoid multiple database access at
   run time"); except at discontinuities they copy the neighbours' corners. Corner order is
   south-west, south-east, north-west, north-east (CORNERS).
@@ -16,7 +16,7 @@ Layout (docs/terrain-database.md):
 - Heights are float32 metres above ``origin[2]``; the world position (float64) of voxel corner
   (i, j) of level L is ``origin + (i, j, 0) * spacing_m * 2**L`` plus the stored height.
 - Colours are sRGB-encoded uint8 (decoded to linear by the renderer with a 256-entry table).
-- A voxel may call a vertical pattern (seed 002 "pattern insertion": trees, buildings): its
+- A voxel may call a vertical pattern (JP H07-76990 "pattern insertion": trees, buildings): its
   ``pattern`` entry is 0 for plain ground or k >= 1 for ``patterns[k - 1]``.
 """
 

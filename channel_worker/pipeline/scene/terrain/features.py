@@ -6,7 +6,7 @@
 - tree_mask(): a deterministic pattern mask: clustered forests covering a given fraction of the
   voxels that are gentle enough (slope below a limit) and outside every pad and its blend,
   preferring the higher ground (the bundled region is forested ridges).
-- TREE_PATTERN and BUILDING_PATTERN: the vertical patterns of seed 002's pattern memory.
+- TREE_PATTERN and BUILDING_PATTERN: the vertical patterns of JP H07-76990's pattern memory.
 """
 
 from __future__ import annotations

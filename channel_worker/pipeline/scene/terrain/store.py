@@ -11,7 +11,7 @@
       page_table.npy  (sum of pages_x * pages_y,) int32 page index or -1
 
 The arrays are memory-mapped on load (mmap=True): a page is read from disk the first time the
-renderer touches it, like seed 002's pages loaded dynamically into the active database as the
+renderer touches it, like JP H07-76990's pages loaded dynamically into the active database as the
 view moves. Loading validates everything the renderer relies on, so a malformed database is
 refused here with a TerrainError naming the file, the field and the value, never later.
 """
@@ -136,7 +136,8 @@ class _Header:
         self.page_size = self.integer(doc, "page_size", 1, 4096)
         levels = level_count(self.nx, self.ny, self.page_size)
         self.levels = self.integer(doc, "levels", levels, levels)
-        want = dict(zip(("pages_x", "pages_y", "table_offset"), page_layout(self.nx, self.ny, self.page_size)))
+        want = dict(zip(("pages_x", "pages_y", "table_offset"), page_layout(self.nx, self.ny, self.page_size),
+                        strict=True))
         for name, expected in want.items():
             if doc[name] != [int(v) for v in expected]:
                 raise self.fail(name, doc[name], f"is not {[int(v) for v in expected]} "

@@ -162,7 +162,7 @@ def test_no_voxel_is_missed(i, j, tall, distance, bearing, height, aim_h, aim_p,
 
     The spike is kept within 1400 m, where its 10 m voxel is at least one pixel wide
     (60 degrees / 160 px = 6.5 mrad): the pre-image has one azimuth column per pixel, so a
-    voxel narrower than a pixel in azimuth can fall between two columns (seed 002 samples
+    voxel narrower than a pixel in azimuth can fall between two columns (JP H07-76990 samples
     one ray per column too); the level selection is there to keep voxels a pixel wide or more.
     """
     t = _spike_db(i, j, tall)

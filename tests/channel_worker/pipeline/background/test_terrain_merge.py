@@ -273,7 +273,9 @@ def test_the_scanline_renderer_refuses_terrain_and_haze(what):
     db = (scene(terrain=pad()) if what == "terrain"
           else scene(haze={"visibility_m": 2000.0, "colour": "#c0c8d0"}))
     with pytest.raises(ValueError, match="scanline"):
-        render_frame(db, CHANNEL, Eyepoint.of(0.0, -50.0, 20.0, 0.0, -5.0, 0.0), RenderOptions(renderer="scanline", samples="centre"))
+        render_frame(db, CHANNEL, Eyepoint.of(0.0, -50.0, 20.0, 0.0, -5.0, 0.0),
+                     RenderOptions(renderer="scanline", samples="centre"))
+
 
 def test_terrain_margin_grows_with_grazing():
     """Sanity of the margin's conversion to range: at every sample the pushed-back terrain

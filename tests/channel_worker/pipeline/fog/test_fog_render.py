@@ -1,4 +1,4 @@
-"""Layered fog (seed 004) through the whole pipeline: polygons, terrain, sky and earth seen
+"""Layered fog (US 5,535,374) through the whole pipeline: polygons, terrain, sky and earth seen
 through the strata, checked pixel by pixel against the optical depth integrated independently
 along each pixel's ray, on the hard cases of the issue; and the scene key's validation."""
 
@@ -67,7 +67,7 @@ def pixel_rays(view):
 
 def expected(fog, eye, dirs, ranges, colour):
     t = np.array([math.exp(-exact_depth(fog, eye, d, r)) if np.isfinite(r) else np.nan
-                  for d, r in zip(dirs.reshape(-1, 3), ranges.ravel())]).reshape(ranges.shape)
+                  for d, r in zip(dirs.reshape(-1, 3), ranges.ravel(), strict=True)]).reshape(ranges.shape)
     return t[..., None] * colour + (1.0 - t[..., None]) * fog.colour
 
 
@@ -86,7 +86,7 @@ def wall_error(db, eye: Eyepoint, distance: float) -> tuple[float, int]:
 
 # Measured at the default table spacing (an eighth of the sample spacing): at most 5e-5 with
 # the eye between resample grid points (13.7, 47.3 m), 3e-8 on them (a quarter of the spacing:
-# 6e-4; the seed's linear interpolation of the average at the sample spacing: 0.06).
+# 6e-4; US 5,535,374's linear interpolation of the average at the sample spacing: 0.06).
 WALL_BOUND = 5e-4
 
 
@@ -165,7 +165,8 @@ def test_a_thousand_kilometres_from_the_origin():
     (the eye's axis position is taken in float64)."""
     far = (1.0e6, -1.0e6, 0.0)
     fog_far = dict(GROUND, origin_m=list(far))
-    near = render_frame(wall_scene(600.0), SMALL, Eyepoint.of(0.0, 0.0, 30.0, 0.0, -5.0, 0.0), RenderOptions(samples="rgss4"))
+    near = render_frame(wall_scene(600.0), SMALL, Eyepoint.of(0.0, 0.0, 30.0, 0.0, -5.0, 0.0),
+                        RenderOptions(samples="rgss4"))
     away = render_frame(wall_scene(600.0, shift=far, fog=fog_far), SMALL,
                         Eyepoint.of(far[0], far[1], 30.0, 0.0, -5.0, 0.0), RenderOptions(samples="rgss4"))
     assert np.abs(near.rgb - away.rgb).max() < 1e-5
@@ -262,7 +263,7 @@ def test_terrain_is_fogged_by_its_range():
     covered = (a.inv_z > 0).all(axis=2) & np.isfinite(a.range_m) & (dirs[..., 2] < -0.05)
     assert covered.sum() > 2000
     tau = np.array([exact_depth(fogged.fog, np.array([0.0, 0.0, 35.0]), d, r)
-                    for d, r in zip(dirs[covered], a.range_m[covered])])
+                    for d, r in zip(dirs[covered], a.range_m[covered], strict=True)])
     t = np.exp(-tau)[:, None]
     want = t * a.rgb[covered] + (1 - t) * linear(FOG)
     # The pre-image texel is fogged at its centre's range and resampled: measured 8e-5.
@@ -293,7 +294,9 @@ def test_a_coarsened_table_is_reported():
 
 def test_the_scanline_renderer_refuses_fog():
     with pytest.raises(ValueError, match="fog"):
-        render_frame(wall_scene(600.0), SMALL, Eyepoint.of(0.0, 0.0, 30.0, 0.0, 0.0, 0.0), RenderOptions(samples="centre", renderer="scanline"))
+        render_frame(wall_scene(600.0), SMALL, Eyepoint.of(0.0, 0.0, 30.0, 0.0, 0.0, 0.0),
+                     RenderOptions(samples="centre", renderer="scanline"))
+
 
 def _doc(fog):
     return {"format": "ig-scene/1", "sky": {"colour": SKY}, "earth": {"colour": EARTH},

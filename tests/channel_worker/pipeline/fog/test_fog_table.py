@@ -1,4 +1,4 @@
-"""Layered fog (channel_worker/pipeline/fog.py, seed 004): the per-frame table of average
+"""Layered fog (channel_worker/pipeline/fog/fog.py, US 5,535,374): the per-frame table of average
 extinction (fog_params) and its per-sample lookup (fog_depths) against the exact integral of
 the piecewise-linear strata (channel_worker/testing/fog_reference.py).
 
@@ -65,7 +65,7 @@ RANGES = np.geomspace(1.0, 1e5, 61)
 #: The axis-integral bound's K (module docstring) for tables 1/8 to 1 x the sample spacing.
 #: Measured: 0.021 over 3000 of the property test's examples; 0.032 over 3000 random structures
 #: x 256 rays (half of them grazing) at 1/16 to 1 x the spacing. (A table 2 or 4 x coarser than
-#: the samples: 0.17, 0.25. The seed's linear interpolation of the average, fog.py's first
+#: the samples: 0.17, 0.25. US 5,535,374's linear interpolation of the average, fog.py's first
 #: version: 0.23.)
 K_AXIS = 0.045
 #: The thin-layer test's bound in the eye's cells and the one holding the layer's edge:
@@ -74,8 +74,8 @@ THIN_EDGE = 0.15
 
 
 def tables(spacing: float) -> tuple[float | None, float]:
-    """The table spacings each hard case runs with: fog.py's default (None) and the seed's,
-    the sample spacing itself."""
+    """The table spacings each hard case runs with: fog.py's default (None) and US
+    5,535,374's, the sample spacing itself."""
     return (None, spacing)
 
 
@@ -307,7 +307,7 @@ def test_thin_layer_inside_the_eye_cell():
     # The layer (30..50 m) lies inside the eye's first table cell (29..54 m).
     r = np.array([22.0, 24.0, 30.0, 60.0])  # straight up: d = r, every one past the layer
     ours = fog_depths(tab.params, r, np.ones(r.size))
-    # Measured: 0.480 and 0.498 (the seed's linear average: 0.387, 0.461), then 0.5 exactly.
+    # Measured: 0.480 and 0.498 (US 5,535,374's linear average: 0.387, 0.461), then 0.5 exactly.
     assert relative(ours[:2], np.full(2, 0.5)).max() <= 0.05, ours
     assert relative(ours[2:], np.full(2, 0.5)).max() <= 1e-9, ours
 
@@ -546,7 +546,7 @@ def test_error_shrinks_as_the_table_spacing_halves():
 
 def test_depth_never_falls_with_range():
     """Eye 5 m up a layer thinning from sigma 0.1 at plane 0 to 0 at plane 1 (10 m), and at
-    its foot: straight up the depth grows to 0.125 (0.5) and stays. (The seed's linear
+    its foot: straight up the depth grows to 0.125 (0.5) and stays. (US 5,535,374's linear
     interpolation of the average read 0.166 at 7 m, falling back to 0.125 at 10 m.)"""
     for h, table in ((5.0, 10.0), (5.0, None), (0.0, 10.0), (0.0, 40.0), (5.0, 40.0)):
         fg = fog([0.1, 0.0], 10.0, table=table)

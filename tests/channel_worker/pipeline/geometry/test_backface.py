@@ -17,7 +17,7 @@ def build(*faces):
     start = np.concatenate([[0], np.cumsum([len(f[0]) for f in faces])]).astype(np.int64)
     k = len(faces)
     return Polygons(verts, start, np.ones((k, 3), np.float32), np.ones(k, np.float32),
-                    np.arange(k, dtype=np.int32), np.array([f[1] for f in faces]))
+                    np.arange(k, dtype=np.int32), np.array([f[1] for f in faces]), np.zeros(k, np.int16))
 
 
 def test_front_kept_back_and_edge_on_dropped():
@@ -34,5 +34,5 @@ def test_far_away_face_keeps_its_vertices():
     a = face([[1e6, 0, 1e6], [1e6 + 1, 0, 1e6], [1e6, 1, 1e6]], [0, 0, -1])
     b = face([[0, 0, 2], [1, 0, 2], [0, 1, 2], [-1, 0.5, 2]], [0, 0, -1])
     out = eliminate_backfaces(build(a, b))
-    assert out.count == 2
+    assert out.polygon_count == 2
     assert out.start.tolist() == [0, 3, 7]

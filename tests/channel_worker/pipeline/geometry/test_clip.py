@@ -18,7 +18,7 @@ def polys(*faces):
     start = np.concatenate([[0], np.cumsum([len(f) for f in faces])]).astype(np.int64)
     n = len(faces)
     return Polygons(verts, start, np.ones((n, 3), np.float32), np.ones(n, np.float32),
-                    np.arange(n, dtype=np.int32), np.tile([0, 0, -1.0, -1.0], (n, 1)))
+                    np.arange(n, dtype=np.int32), np.tile([0, 0, -1.0, -1.0], (n, 1)), np.zeros(n, np.int16))
 
 
 def inside(v, view=VIEW, eps=1e-9):
@@ -35,14 +35,14 @@ def test_polygon_inside_is_untouched():
 
 def test_polygon_behind_the_eye_is_dropped():
     out = clip(polys([[0, 0, -5], [1, 0, -5], [0, 1, -1]]), VIEW)
-    assert out.count == 0
+    assert out.polygon_count == 0
 
 
 def test_polygon_through_the_eye_plane_is_cut_at_near():
     # a floor quad under the eye running from behind to in front of it
     quad = [[-1, -1, -10], [1, -1, -10], [1, -1, 10], [-1, -1, 10]]
     out = clip(polys(quad), VIEW)
-    assert out.count == 1
+    assert out.polygon_count == 1
     assert out.verts[:, 2].min() >= VIEW.near - 1e-12
     assert inside(out.verts)
     # the near-plane cut lies on the quad's plane y = -1
@@ -68,7 +68,7 @@ def test_shared_edge_clips_to_bit_identical_points_both_ways(p, q):
     assume(np.abs(frustum_planes(VIEW) @ np.append(p, 1.0)).min() > 1e-6)
     assume(np.abs(frustum_planes(VIEW) @ np.append(q, 1.0)).min() > 1e-6)
     out = clip(polys([p, q, apex], [q, p, apex - [0.0, 0.0, 60.0]]), VIEW)
-    if out.count < 2:
+    if out.polygon_count < 2:
         return
     pa = {tuple(v) for v in out.verts[out.start[0]:out.start[1]]}
     pb = {tuple(v) for v in out.verts[out.start[1]:out.start[2]]}
@@ -86,6 +86,6 @@ def test_shared_edge_clips_to_bit_identical_points_both_ways(p, q):
 def test_clipped_vertices_are_inside_and_finite(tri):
     out = clip(polys(tri), VIEW)
     assert np.isfinite(out.verts).all()
-    if out.count:
+    if out.polygon_count:
         assert inside(out.verts, eps=1e-6)
         assert (np.diff(out.start) >= 3).all()

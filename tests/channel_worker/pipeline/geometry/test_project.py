@@ -41,10 +41,10 @@ def test_project_snaps_and_interpolates_depth_exactly():
         n = -n
         v = v[::-1].copy()
     polys = Polygons(v, np.array([0, 4]), np.ones((1, 3), np.float32), np.ones(1, np.float32),
-                     np.zeros(1, np.int32), np.array([[*n, n @ v[0]]]))
+                     np.zeros(1, np.int32), np.array([[*n, n @ v[0]]]), np.zeros(1, np.int16))
     polys = eliminate_backfaces(polys)
     screen = project(polys, view)
-    assert screen.count == 1
+    assert screen.polygon_count == 1
     a, b, c = screen.inv_z[0]
     for p in v:
         sx, sy = 100 + 100 * p[0] / p[2], 100 - 100 * p[1] / p[2]
@@ -59,5 +59,5 @@ def test_degenerate_polygon_after_snapping_is_dropped():
     view = make_view(ChannelSpec.symmetric("c", 200, 200, 90.0, 90.0), Eyepoint.of(0, 0, 0, 0, 0, 0))
     v = np.array([[0, 0, 1e6], [1e-3, 0, 1e6], [0, 1e-3, 1e6]])  # far smaller than 1/256 px
     polys = Polygons(v, np.array([0, 3]), np.ones((1, 3), np.float32), np.ones(1, np.float32),
-                     np.zeros(1, np.int32), np.array([[0, 0, -1.0, -1e6]]))
-    assert project(polys, view).count == 0
+                     np.zeros(1, np.int32), np.array([[0, 0, -1.0, -1e6]]), np.zeros(1, np.int16))
+    assert project(polys, view).polygon_count == 0

@@ -42,7 +42,7 @@ def test_pitch_nose_up_and_roll_right_wing_down():
     right, _, _ = axes(0, 0, 30)
     assert right[2] < 0
     # heading then pitch then roll: pitch is about the already-turned right axis
-    right, fwd, up = axes(90, 30, 0)
+    right, fwd, _up = axes(90, 30, 0)
     np.testing.assert_allclose(fwd, [math.cos(math.radians(30)), 0, math.sin(math.radians(30))], atol=1e-15)
 
 
@@ -99,5 +99,5 @@ def test_infinite_attitude_names_the_field():
 
 def test_bad_frustum_names_the_field():
     bad = ChannelSpec("x", 10, 10, 10.0, -10.0, -5.0, 5.0)
-    with pytest.raises(ValueError, match="left_deg 10.0 is not < right_deg -10.0"):
+    with pytest.raises(ValueError, match=r"left_deg 10.0 is not < right_deg -10.0"):
         make_view(bad, Eyepoint.of(0, 0, 1, 0, 0, 0))

@@ -38,7 +38,8 @@ def test_valid_scene_loads():
      r"faces\[1\].indices: the face is not convex"),
     (lambda d: d["models"]["box"]["faces"][1].update(indices=[4, 6, 5, 7]),
      r"faces\[1\].indices: the face has no area"),
-    (lambda d: d["models"]["box"]["faces"][1].update(indices=[4, 5, 4]), r"faces\[1\].indices: \[4, 5, 4\] repeats a vertex"),
+    (lambda d: d["models"]["box"]["faces"][1].update(indices=[4, 5, 4]),
+     r"faces\[1\].indices: \[4, 5, 4\] repeats a vertex"),
     (lambda d: d.pop("earth"), r"missing key 'earth'"),
 ])
 def test_malformed_scene_names_path_and_value(mutate, pattern):

@@ -67,7 +67,7 @@ def render_and_reference(db, eye, pattern,
     render_frame(db, CH, eye, RenderOptions(samples=pattern, filter="box"), trace=trace)
     image = render_frame(db, CH, eye, RenderOptions(samples=pattern, filter="box")).rgb.astype(np.float64)
     screen = trace["screen"]
-    assert screen.count == len(PLATES)
+    assert screen.polygon_count == len(PLATES)
     ref = reference_pixels(screen, W, H, depth_order(screen), backdrop)
     return image, ref, trace["buffer"].offsets
 

@@ -1,4 +1,4 @@
-"""Cross-check: the sub-area renderer (seed 000) and the scan-line renderer (seed 003) see the
+"""Cross-check: the sub-area renderer (EP 0611020) and the scan-line renderer (ARL Systems Note 77) see the
 same feature at every pixel centre of opaque scenes without the tie cases of docs/scanline.md.
 
 The scenes are boxes floating in depth slabs that do not overlap along the view direction, so
@@ -28,7 +28,7 @@ def seen_features(database, eyepoint: Eyepoint, renderer: str, channel: ChannelS
     trace: dict = {}
     render_frame(database, channel, eyepoint, RenderOptions(samples="centre", renderer=renderer), trace=trace)
     opaque = trace["buffer"].opaque[..., 0]
-    if trace["screen"].count == 0:
+    if trace["screen"].polygon_count == 0:
         return opaque
     ids = trace["screen"].feature_id[np.maximum(opaque, 0)]
     return np.where(opaque >= 0, ids, opaque)

@@ -1,4 +1,4 @@
-"""Scan-line renderer (seed 003): exact coverage, priority list, horizon, translucent store."""
+"""Scan-line renderer (ARL Systems Note 77): exact coverage, priority list, horizon, translucent store."""
 
 from __future__ import annotations
 
@@ -82,15 +82,15 @@ def priority_key(screen: ScreenPolygons, p: int) -> tuple:
         c = polygon(screen, q).mean(axis=0) / S
         a, b, k = screen.inv_z[q]
         return a * c[0] + b * c[1] + k
-    same_plane = [q for q in range(screen.count) if (screen.inv_z[q] == screen.inv_z[p]).all()]
+    same_plane = [q for q in range(screen.polygon_count) if (screen.inv_z[q] == screen.inv_z[p]).all()]
     return (-max(centroid_inv_z(q) for q in same_plane), -int(screen.layer[p]), p)
 
 
 def reference(screen: ScreenPolygons, k: int):
     """Per pixel: the first opaque face in priority order (-1: none) and the translucent faces
     ahead of it (at most k), by brute force over every face."""
-    order = sorted(range(screen.count), key=lambda p: priority_key(screen, p))
-    cover = [edge_test(polygon(screen, p)) for p in range(screen.count)]
+    order = sorted(range(screen.polygon_count), key=lambda p: priority_key(screen, p))
+    cover = [edge_test(polygon(screen, p)) for p in range(screen.polygon_count)]
     opaque = np.full((H, W), -1)
     trans = {}
     for m in np.ndindex(H, W):
@@ -351,7 +351,7 @@ def test_pipeline_box_touching_the_raster_edges_has_no_nan(make_scene, box_model
                     [{"model": "b", "position": [3.0, 12.0, 0.0]}])
     view = make_view(ChannelSpec.symmetric("t", W, H, 60.0), Eyepoint.of(0, 0, 5, 10, 5, 15))
     screen = project(clip(eliminate_backfaces(to_eye(db, cull(db, view), view)), view), view)
-    assert screen.count > 0
+    assert screen.polygon_count > 0
     touches = (screen.fixed == 0) | (screen.fixed == [W * S, H * S])
     assert touches.any()  # clipped at the raster edges
     buf = scanline(screen, view)

@@ -29,7 +29,7 @@ def brute_force(screen: ScreenPolygons, offsets: np.ndarray, k: int):
     px = xs[..., None] * SUBPIXEL + off[None, None, :, 0]
     py = ys[..., None] * SUBPIXEL + off[None, None, :, 1]
     inside, depth = [], []
-    for p in range(screen.count):
+    for p in range(screen.polygon_count):
         v = screen.fixed[screen.start[p]:screen.start[p + 1]]
         ok = np.ones(px.shape, bool)
         for i in range(len(v)):
@@ -40,11 +40,13 @@ def brute_force(screen: ScreenPolygons, offsets: np.ndarray, k: int):
         a, b, c = screen.inv_z[p]
         inside.append(ok)
         depth.append(a * (px * (1.0 / SUBPIXEL)) + b * (py * (1.0 / SUBPIXEL)) + c)
-    key = lambda p, m: (depth[p][m], int(screen.layer[p]), -p)
+    def key(p, m):
+        return depth[p][m], int(screen.layer[p]), -p
+
     opaque = np.full(px.shape, -1)
     trans = {}
     for m in np.ndindex(px.shape):
-        cover = [p for p in range(screen.count) if inside[p][m]]
+        cover = [p for p in range(screen.polygon_count) if inside[p][m]]
         opq = [p for p in cover if screen.opacity[p] >= 1.0]
         best = max(opq, key=lambda p: key(p, m)) if opq else -1
         opaque[m] = best
@@ -120,9 +122,9 @@ def test_earth_and_sky_fill_uncovered_samples():
 
 def test_bad_store_and_subarea_sizes_are_named():
     screen = random_scene(1, 2)
-    with pytest.raises(ValueError, match="subarea: .*0"):
+    with pytest.raises(ValueError, match=r"subarea: .*0"):
         store(screen, VIEW, 1, subarea=0)
-    with pytest.raises(ValueError, match="max_translucent: .*16"):
+    with pytest.raises(ValueError, match=r"max_translucent: .*16"):
         store(screen, VIEW, 1, max_translucent=16)
 
 
@@ -161,7 +163,7 @@ def _z_fighting_free(trace, db) -> bool:
     screen, buf = trace["screen"], trace["buffer"]
     h, w, _ = buf.opaque.shape
     best = np.full(buf.opaque.shape, -1)
-    for p in range(screen.count):
+    for p in range(screen.polygon_count):
         a, b = screen.start[p], screen.start[p + 1]
         one = ScreenPolygons(screen.fixed[a:b], np.array([0, b - a]), screen.inv_z[p:p + 1],
                              screen.colour[p:p + 1], screen.opacity[p:p + 1],

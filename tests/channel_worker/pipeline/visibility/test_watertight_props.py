@@ -134,7 +134,7 @@ def renderer_coverage(screen: ScreenPolygons, w: int, h: int, offsets: np.ndarra
     whether the opaque-only path gives the sample a polygon."""
     up = Eyepoint.of(0.0, 0.0, 10.0, 0.0, 90.0, 0.0)  # only sky behind the mesh
     view = make_view(ChannelSpec.symmetric("t", w, h, 60.0), up)
-    glass = screen._replace(opacity=np.full(screen.count, 0.5, np.float32))
+    glass = screen._replace(opacity=np.full(screen.polygon_count, 0.5, np.float32))
     stored = store(glass, view, offsets, max_translucent=2, subarea=subarea, with_range=False)
     solid = store(screen, view, offsets, max_translucent=2, subarea=subarea, with_range=False)
     return stored.translucent_count.astype(np.int32), solid.opaque >= 0
@@ -453,7 +453,8 @@ def render_room(make_scene, half, local_eye, hpr_room, hpr_eye, origin, seed, fi
                     [{"model": "room", "position": list(origin), "hpr": list(hpr_room)}])
     eye_world = np.asarray(origin) + hpr_matrix(*hpr_room) @ np.asarray(local_eye, np.float64)
     trace: dict = {}
-    image = render_frame(db, ROOM_CH, Eyepoint.of(*eye_world, *hpr_eye), RenderOptions(samples="d3d16", filter="box"), trace=trace)
+    image = render_frame(db, ROOM_CH, Eyepoint.of(*eye_world, *hpr_eye), RenderOptions(samples="d3d16", filter="box"),
+                         trace=trace)
     return image, trace, 6 * 4  # room faces come first: feature ids below 24
 
 
@@ -476,7 +477,7 @@ def check_room(image, trace, n_room_faces, half):
     assert (counts == 1).all(), f"walls cover samples {np.unique(counts)} times"
     diagonal = 2.0 * float(np.linalg.norm(half))
     assert np.isfinite(image.range_m).all()
-    assert 0.25 <= image.range_m.min() and image.range_m.max() <= diagonal * 1.001
+    assert image.range_m.min() >= 0.25 and image.range_m.max() <= diagonal * 1.001
 
 
 def room_props(n: int) -> settings:

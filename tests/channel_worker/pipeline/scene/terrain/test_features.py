@@ -68,7 +68,7 @@ def test_trees_are_deterministic_gentle_outside_pads_and_at_the_requested_densit
     eligible = (slope < 30.0) & ~near_pad
     assert mask.sum() == pytest.approx(0.3 * eligible.sum(), abs=1)
     assert tree_mask(heights, x, y, **{**kwargs, "density": 0.0}).sum() == 0
-    with pytest.raises(TerrainError, match="density 1.5"):
+    with pytest.raises(TerrainError, match=r"density 1.5"):
         tree_mask(heights, x, y, **{**kwargs, "density": 1.5})
 
 

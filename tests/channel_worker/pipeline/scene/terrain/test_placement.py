@@ -109,7 +109,7 @@ def test_a_grid_without_crs_is_placed_in_its_own_metres():
 
 def test_bad_spacings_are_refused():
     grid = geographic_grid(lambda lat, lon: lat * 0 + lon * 0)
-    with pytest.raises(TerrainError, match="spacing_m: 100000.0 leaves no whole voxel"):
+    with pytest.raises(TerrainError, match=r"spacing_m: 100000.0 leaves no whole voxel"):
         place(grid, spacing_m=1e5)
     with pytest.raises(TerrainError, match=f"spacing_m: 1.0 makes .* more than {MAX_NODES} nodes"):
         place(grid, spacing_m=1.0)

@@ -38,7 +38,7 @@ def test_save_load_round_trip(small_db, tmp_path, mmap):
     for name in ("spacing_m", "nx", "ny", "page_size", "levels", "z_min", "z_max", "info"):
         assert getattr(db, name) == getattr(small_db, name)
     assert [p.name for p in db.patterns] == ["tree", "building"]
-    for got, want in zip(db.patterns, small_db.patterns):
+    for got, want in zip(db.patterns, small_db.patterns, strict=True):
         np.testing.assert_array_equal(got.top_m, want.top_m)
         np.testing.assert_array_equal(got.rgb, want.rgb)
         assert got.top_m.dtype == np.float32 and got.rgb.dtype == np.uint8

@@ -1,0 +1,358 @@
+"""numba kernels of the warp (background.py): every output pixel and sample from the zero-roll
+pre-image, the sky and earth plane behind it, the coarse clouds over it.
+
+The warp is JP H07-76990's rotation by the roll angle with anti-aliased resampling and its
+vertical perspective correction, as one inverse mapping from screen points to pre-image
+coordinates (azimuth, elevation): exact for wide and off-axis channels, so terrain seams
+between channels line up like polygon seams.
+
+The per-row and per-block functions are compiled without reference counting (jit.borrowing):
+they hand the frame's groups to inlined per-pixel helpers, and numba would otherwise count
+every array of a group in and out of every such call (the warp took a third longer).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from numba import njit, prange
+
+from channel_worker.pipeline.jit import borrowing
+
+from ._groups import PRE_A, PRE_B, PRE_G, PRE_IR, PRE_R
+from ._sky_kernels import earth_samples, sky_and_earth
+
+
+class _Block(NamedTuple):
+    """One block of the warp: its top-left pixel (x0, y0), its size in pixels (inv_size =
+    1 / size), and how its points map to the pre-image: exactly, or bilinearly from the
+    pre-image coordinates of its corners (cols: columns, rows: rows, each in the order
+    top-left, top-right, bottom-left, bottom-right)."""
+
+    x0: int
+    y0: int
+    size: int
+    inv_size: float
+    exact: bool
+    cols: tuple
+    rows: tuple
+
+
+@njit(cache=True, inline="always")
+def _map_point(sx, sy, frame, pre):
+    """Pre-image coordinates (column, row; texel centres at integers) of screen point (sx, sy)
+    (pixels)."""
+    m = frame.world_to_eye
+    mapping = frame.mapping
+    tx = (sx - mapping[1]) / mapping[0]
+    ty = (sy - mapping[3]) / mapping[2]
+    wx = m[0, 0] * tx + m[1, 0] * ty + m[2, 0]
+    wy = m[0, 1] * tx + m[1, 1] * ty + m[2, 1]
+    wz = m[0, 2] * tx + m[1, 2] * ty + m[2, 2]
+    theta = math.atan2(wz, math.sqrt(wx * wx + wy * wy))
+    rel = math.atan2(wx, wy) - pre.phi_lo
+    rel -= 2.0 * math.pi * math.floor(rel / (2.0 * math.pi))  # into [0, 2 pi)
+    if not pre.full and rel > 0.5 * (pre.span + 2.0 * math.pi):
+        rel -= 2.0 * math.pi  # just left of the range, not far right of it
+    return rel / pre.dphi - 0.5, (theta - pre.theta0) / pre.dtheta - 0.5
+
+
+@njit(cache=True, parallel=True)
+def warp_kernel(frame, pre, air, sky_haze, clouds, depth, block, out):
+    """Every output pixel and sample from the pre-image: roll, vertical perspective and the
+    off-axis frustum in one inverse mapping, bilinear (anti-aliased) resampling.
+
+    Pre-image coordinates come from the exact world direction (azimuth, elevation); they are
+    computed exactly at the corners of block x block pixel blocks and interpolated inside,
+    unless the interpolation misses the exact value at the block centre by more than 1/50
+    texel (near the nadir or zenith, where azimuth turns fast): such a block is split in four,
+    and a quarter that still misses maps every point exactly.
+
+    Per pixel (out.rgb, at its centre): the terrain over the sky or earth plane (the share of
+    the pixel's samples below the horizon sees the earth), with haze. Per sample (out.inv_z):
+    1/z of the terrain pushed back by the polygon margin where the terrain covers the sample
+    (coverage >= 1/2), else 0 (sky and earth never hide a polygon); so a hill's silhouette
+    against a polygon behind it keeps the samples' resolution. out.range_m: the pixel's
+    nearest range (the earth plane's where seen, +inf for sky). With clouds, out.cloud keeps
+    the pixel's cloud (premultiplied RGB, opacity, entry range) for the polygons.
+
+    Args:
+        frame: the frame's constants (FrameConstants).
+        pre: the pre-image (Preimage).
+        air: the frame's air array (haze, then fog; contract.py).
+        sky_haze: the sky's haze by elevation (SkyHaze).
+        clouds: the coarse cloud image (CloudImage), interpolated bilinearly and laid over
+            the background where the background lies beyond the cloud's entry range.
+        depth: where per-sample depth is wanted, and the polygon margin (SampleDepth).
+        block: pixels per side of the blocks mapped at their corners.
+        out: the arrays filled (BackgroundArrays).
+    """
+    blocks_y = (frame.height + block - 1) // block
+    # A row of blocks per task, in a function of its own: numba's parallel array analysis
+    # fails on the corner tuples of _block_corners inlined into the loop body.
+    for by in prange(blocks_y):
+        _warp_row(frame, pre, air, sky_haze, clouds, depth, block, out, by * block)
+
+
+@borrowing
+def _warp_row(frame, pre, air, sky_haze, clouds, depth, block, out, y0):
+    """The blocks of warp_kernel whose top row is y0."""
+    blocks_x = (frame.width + block - 1) // block
+    for bx in range(blocks_x):
+        x0 = bx * block
+        ok, cols, rows = _block_corners(x0, y0, block, frame, pre)
+        if ok:
+            _warp_block(frame, pre, air, sky_haze, clouds, depth, out,
+                        _Block(x0, y0, block, 1.0 / block, False, cols, rows))
+            continue
+        # Mapping too curved for the block (near the nadir or zenith): its quarters, each
+        # interpolated if it can be, else mapped point by point.
+        half = block // 2
+        for q in range(4):
+            qx0 = x0 + (q % 2) * half
+            qy0 = y0 + (q // 2) * half
+            ok, cols, rows = _block_corners(qx0, qy0, half, frame, pre)
+            _warp_block(frame, pre, air, sky_haze, clouds, depth, out,
+                        _Block(qx0, qy0, half, 1.0 / half, not ok, cols, rows))
+
+
+@njit(cache=True, inline="always")
+def _block_corners(x0, y0, size, frame, pre):
+    """Pre-image coordinates of a block's corners (columns, rows), and whether interpolating
+    them misses the exact value at the block's centre by at most 1/50 texel."""
+    c00, r00 = _map_point(x0, y0, frame, pre)
+    c10, r10 = _map_point(x0 + size, y0, frame, pre)
+    c01, r01 = _map_point(x0, y0 + size, frame, pre)
+    c11, r11 = _map_point(x0 + size, y0 + size, frame, pre)
+    cm, rm = _map_point(x0 + 0.5 * size, y0 + 0.5 * size, frame, pre)
+    if pre.full:
+        # Unwrap the corners around the first one (the columns are periodic).
+        ncols = pre.texels.shape[0]
+        c10 -= ncols * round((c10 - c00) / ncols)
+        c01 -= ncols * round((c01 - c00) / ncols)
+        c11 -= ncols * round((c11 - c00) / ncols)
+        cm -= ncols * round((cm - c00) / ncols)
+    ok = (abs(0.25 * (c00 + c10 + c01 + c11) - cm) <= 0.02
+          and abs(0.25 * (r00 + r10 + r01 + r11) - rm) <= 0.02)
+    return ok, (c00, c10, c01, c11), (r00, r10, r01, r11)
+
+
+@borrowing
+def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
+    """The pixels of one block of warp_kernel (blk: _Block), their pre-image coordinates
+    interpolated from the block's corners, or each mapped exactly."""
+    texels = pre.texels
+    ncols = texels.shape[0]
+    nrows = texels.shape[1]
+    mapping = frame.mapping
+    offsets = frame.offsets
+    s_count = offsets.shape[0]
+    tiles_x = (frame.width + depth.tile - 1) // depth.tile
+    # Guard: screen_mapping's scales are nonzero (check_channel: left < right, bottom < top).
+    inv_sxs = 1.0 / mapping[0]
+    inv_sys = 1.0 / mapping[2]
+    for y in range(blk.y0, min(blk.y0 + blk.size, frame.height)):
+        for x in range(blk.x0, min(blk.x0 + blk.size, frame.width)):
+            # The pixel centre: colour and range of the terrain.
+            sx = x + 0.5
+            sy = y + 0.5
+            c, rr = _block_point(sx, sy, blk, frame, pre)
+            c0, c1, fc = _columns(c, ncols, pre.full)
+            r0, r1, fr = _rows(rr, nrows)
+            w00 = (1.0 - fc) * (1.0 - fr)
+            w10 = fc * (1.0 - fr)
+            w01 = (1.0 - fc) * fr
+            w11 = fc * fr
+            a00 = w00 * texels[c0, r0, PRE_A]
+            a10 = w10 * texels[c1, r0, PRE_A]
+            a01 = w01 * texels[c0, r1, PRE_A]
+            a11 = w11 * texels[c1, r1, PRE_A]
+            alpha = min(a00 + a10 + a01 + a11, 1.0)
+            ir = 0.0
+            if alpha > 0.0:
+                ir = _inverse_range(texels, c0, c1, r0, r1, (w00, w10, w01, w11))
+            keep = 1.0 - alpha
+            cr = (w00 * texels[c0, r0, PRE_R] + w10 * texels[c1, r0, PRE_R]
+                  + w01 * texels[c0, r1, PRE_R] + w11 * texels[c1, r1, PRE_R])
+            cg = (w00 * texels[c0, r0, PRE_G] + w10 * texels[c1, r0, PRE_G]
+                  + w01 * texels[c0, r1, PRE_G] + w11 * texels[c1, r1, PRE_G])
+            cb = (w00 * texels[c0, r0, PRE_B] + w10 * texels[c1, r0, PRE_B]
+                  + w01 * texels[c0, r1, PRE_B] + w11 * texels[c1, r1, PRE_B])
+            earth_range = math.inf
+            if alpha < 1.0:
+                # Behind the terrain, for what it leaves uncovered: the sky and earth plane.
+                # The sky's haze depends on elevation alone: from the per-row table.
+                n_earth = earth_samples(frame, x, y)
+                hs = 0.0
+                if air[0] != 0.0 and n_earth < s_count:
+                    table = sky_haze.table
+                    q0, q1, fq = _rows((pre.theta0 + (rr + 0.5) * pre.dtheta - sky_haze.theta0)
+                                       / sky_haze.dtheta - 0.5, table.shape[0])
+                    hs = table[q0] + (table[q1] - table[q0]) * fq
+                br, bg, bb, earth_range = sky_and_earth(
+                    frame, air, n_earth, (sx - mapping[1]) * inv_sxs, (sy - mapping[3]) * inv_sys,
+                    hs)
+                cr += keep * br
+                cg += keep * bg
+                cb += keep * bb
+            nearest = earth_range
+            if ir > 0.0:
+                nearest = min(nearest, 1.0 / ir)  # guard: ir > 0
+            out.range_m[y, x] = nearest
+            if clouds.on:
+                cr, cg, cb = _cloud_over(clouds, pre.full, c, rr, nearest, (cr, cg, cb),
+                                         out.cloud, y, x)
+            out.rgb[y, x, 0] = cr
+            out.rgb[y, x, 1] = cg
+            out.rgb[y, x, 2] = cb
+            # Per sample: the terrain's coverage and depth there (only near terrain).
+            t = (y // depth.tile) * tiles_x + x // depth.tile
+            near = (depth.need[t]
+                    and (texels[c0, r0, PRE_A] > 0.0 or texels[c1, r0, PRE_A] > 0.0
+                         or texels[c0, r1, PRE_A] > 0.0 or texels[c1, r1, PRE_A] > 0.0))
+            for s in range(s_count):
+                out.inv_z[y, x, s] = 0.0
+                if not near:
+                    continue
+                qx = x + offsets[s, 0]
+                qy = y + offsets[s, 1]
+                c, rr = _block_point(qx, qy, blk, frame, pre)
+                out.inv_z[y, x, s] = _sample_inverse_depth(
+                    pre, c, rr, (qx - mapping[1]) * inv_sxs, (qy - mapping[3]) * inv_sys,
+                    frame.dz_row, depth.margin_m)
+
+
+@njit(cache=True, inline="always")
+def _inverse_range(texels, c0, c1, r0, r1, weights):
+    """Inverse range (1/metres) interpolated bilinearly, with weights (w00, w10, w01, w11),
+    over the four texels (c0 | c1, r0 | r1) that hold one (1 / range is nearly linear across a
+    plane, so grazing ground interpolates well; a partly covered texel, and the first
+    uncovered one above a column's last surface, hold that surface continued, so edges
+    interpolate too; texels never reached hold 0 and are left out)."""
+    w00, w10, w01, w11 = weights
+    num = 0.0
+    den = 0.0
+    if texels[c0, r0, PRE_IR] != 0.0:
+        num += w00 * texels[c0, r0, PRE_IR]
+        den += w00
+    if texels[c1, r0, PRE_IR] != 0.0:
+        num += w10 * texels[c1, r0, PRE_IR]
+        den += w10
+    if texels[c0, r1, PRE_IR] != 0.0:
+        num += w01 * texels[c0, r1, PRE_IR]
+        den += w01
+    if texels[c1, r1, PRE_IR] != 0.0:
+        num += w11 * texels[c1, r1, PRE_IR]
+        den += w11
+    return num / den if den > 0.0 else 0.0  # guard: den > 0
+
+
+@njit(cache=True, inline="always")
+def _sample_inverse_depth(pre, c, rr, tx, ty, dz_row, margin_m):
+    """1/z (1/metres) a polygon must exceed to be seen in front of the terrain at one sample
+    (pre-image coordinates c, rr; eye ray (tx, ty, 1)), or 0 where the terrain covers less
+    than half of it. The terrain is pushed back by margin_m of height, i.e. margin_m /
+    sin(depression) of range (the sine floored at 1e-3, at most 1000 margins), so a polygon
+    lying on the terrain (a runway on its pad) wins against terrain rounded by
+    interpolation."""
+    texels = pre.texels
+    c0, c1, fc = _columns(c, texels.shape[0], pre.full)
+    r0, r1, fr = _rows(rr, texels.shape[1])
+    a00 = (1.0 - fc) * (1.0 - fr) * texels[c0, r0, PRE_A]
+    a10 = fc * (1.0 - fr) * texels[c1, r0, PRE_A]
+    a01 = (1.0 - fc) * fr * texels[c0, r1, PRE_A]
+    a11 = fc * fr * texels[c1, r1, PRE_A]
+    cover = a00 + a10 + a01 + a11
+    if cover < 0.5:
+        return 0.0
+    ir = _inverse_range(texels, c0, c1, r0, r1, ((1.0 - fc) * (1.0 - fr), fc * (1.0 - fr),
+                                                 (1.0 - fc) * fr, fc * fr))
+    if ir <= 0.0:
+        return 0.0
+    ray = math.sqrt(tx * tx + ty * ty + 1.0)
+    sin_el = (dz_row[0] * tx + dz_row[1] * ty + dz_row[2]) / ray  # guard: ray >= 1
+    push = margin_m / max(-sin_el, 1e-3) if sin_el < 0.0 else margin_m
+    return ray / (1.0 / ir + push)  # guard: ir > 0
+
+
+@njit(cache=True, inline="always")
+def _block_point(sx, sy, blk, frame, pre):
+    """Pre-image coordinates of screen point (sx, sy) in block blk: exact, or interpolated
+    from the block's corners."""
+    if blk.exact:
+        return _map_point(sx, sy, frame, pre)
+    c00, c10, c01, c11 = blk.cols
+    r00, r10, r01, r11 = blk.rows
+    fx = (sx - blk.x0) * blk.inv_size
+    fy = (sy - blk.y0) * blk.inv_size
+    c = (1.0 - fy) * ((1.0 - fx) * c00 + fx * c10) + fy * ((1.0 - fx) * c01 + fx * c11)
+    rr = (1.0 - fy) * ((1.0 - fx) * r00 + fx * r10) + fy * ((1.0 - fx) * r01 + fx * r11)
+    return c, rr
+
+
+@njit(cache=True, inline="always")
+def _cloud_over(clouds, full, c, rr, behind, rgb, out_cloud, y, x):
+    """Interpolate the coarse cloud image at pre-image coordinates (c, rr), keep it for pixel
+    (x, y) in out_cloud, and lay it over colour rgb if what that colour shows lies beyond the
+    cloud's entry range (behind, metres)."""
+    cloud_pre = clouds.texels
+    ncc = cloud_pre.shape[0]
+    nrc = cloud_pre.shape[1]
+    # Guard: the ratios are > 0 (ratios of positive texel sizes).
+    c0, c1, fc = _columns((c + 0.5) / clouds.col_ratio - 0.5, ncc, full)
+    r0, r1, fr = _rows((rr + 0.5) / clouds.row_ratio - 0.5, nrc)
+    w00 = (1.0 - fc) * (1.0 - fr)
+    w10 = fc * (1.0 - fr)
+    w01 = (1.0 - fc) * fr
+    w11 = fc * fr
+    a00 = w00 * cloud_pre[c0, r0, 3]
+    a10 = w10 * cloud_pre[c1, r0, 3]
+    a01 = w01 * cloud_pre[c0, r1, 3]
+    a11 = w11 * cloud_pre[c1, r1, 3]
+    alpha = a00 + a10 + a01 + a11
+    entry = math.inf
+    if alpha > 0.0:
+        # Entry range weighted by opacity, over the texels that have cloud (finite entry).
+        num = 0.0
+        den = 0.0
+        if a00 > 0.0:
+            num += a00 * cloud_pre[c0, r0, 4]
+            den += a00
+        if a10 > 0.0:
+            num += a10 * cloud_pre[c1, r0, 4]
+            den += a10
+        if a01 > 0.0:
+            num += a01 * cloud_pre[c0, r1, 4]
+            den += a01
+        if a11 > 0.0:
+            num += a11 * cloud_pre[c1, r1, 4]
+            den += a11
+        entry = num / den  # guard: den = alpha > 0
+    for ch in range(3):
+        out_cloud[y, x, ch] = (w00 * cloud_pre[c0, r0, ch] + w10 * cloud_pre[c1, r0, ch]
+                               + w01 * cloud_pre[c0, r1, ch] + w11 * cloud_pre[c1, r1, ch])
+    out_cloud[y, x, 3] = alpha
+    out_cloud[y, x, 4] = entry
+    r, g, b = rgb
+    if alpha > 0.0 and behind > entry:
+        keep = 1.0 - alpha
+        return (out_cloud[y, x, 0] + keep * r, out_cloud[y, x, 1] + keep * g,
+                out_cloud[y, x, 2] + keep * b)
+    return r, g, b
+
+
+@njit(cache=True, inline="always")
+def _columns(c, ncols, full):
+    """Neighbouring columns of pre-image coordinate c and the weight of the second."""
+    ci = int(math.floor(c))
+    if full:
+        return ci % ncols, (ci + 1) % ncols, c - ci
+    return min(max(ci, 0), ncols - 1), min(max(ci + 1, 0), ncols - 1), c - ci
+
+
+@njit(cache=True, inline="always")
+def _rows(r, nrows):
+    """Neighbouring rows of pre-image coordinate r (clamped) and the weight of the second."""
+    ri = int(math.floor(r))
+    return min(max(ri, 0), nrows - 1), min(max(ri + 1, 0), nrows - 1), r - ri
