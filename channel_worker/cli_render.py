@@ -34,8 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Render and write the frame; 0 on success, 2 on bad input."""
-    # The pipeline (numba) and OpenImageIO are imported here, not at the top: `ig` builds every
-    # subcommand's parser, and the host must not pay for (or import) the renderer.
+    # The pipeline (numba) and OpenImageIO are imported here, not at the top: `ig --help` builds
+    # every subcommand's parser and should not wait for the renderer to load.
     from services.rig.image_io import write_image
 
     from .pipeline.render import render_frame

@@ -41,9 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sync-timeout", type=positive, default=10.0,
                         help="longest wait for every channel's acknowledgement of a frame, seconds (default 10)")
     parser.add_argument("--start-timeout", type=non_negative, default=120.0,
-                        help="before the first frame, give up on a channel whose worker has not answered "
-                             "its health service for this long, seconds (default 120; a worker that answers "
-                             "while it compiles its kernels is waited for)")
+                        help="before the first frame, give up on a channel that has neither subscribed nor "
+                             "said it is starting for this long, seconds (default 120; a worker whose health "
+                             "says NOT_SERVING while it compiles its kernels is waited for)")
     parser.add_argument("--observers", type=int, default=1,
                         help="observers (the compositor) to wait for before the first frame (default 1)")
     source = parser.add_mutually_exclusive_group()
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
             publisher = FramePublisher(source=source, channels=rig.channel_names, rate_hz=args.rate,
                                        duration_s=duration, sync_timeout_s=args.sync_timeout,
                                        observers=args.observers, start_timeout_s=args.start_timeout,
-                                       alive=_worker_alive(rig))
+                                       starting=_worker_starting(rig))
         except ValueError as exc:
             error("host", exc)
             return EXIT_BAD_INPUT
@@ -165,22 +165,21 @@ def _log_summary(eyepoints) -> None:
         log.info("replay %s: ended at log time %.2f s after %d loop(s)", r.path, r.log_time_s, r.loops)
 
 
-def _worker_alive(rig):
-    """alive(channel) for FramePublisher: whether the channel's worker answers its health service
-    (SERVING, or NOT_SERVING while it compiles its kernels)."""
+def _worker_starting(rig):
+    """starting(channel) for FramePublisher: whether the channel's worker answers its health
+    service NOT_SERVING (compiling its kernels, rendering its warm-up frame)."""
     import grpc
 
     from services.rig.grpc_util import check_health
 
     addresses = {ch.name: ch.address for ch in rig.channels}
 
-    def alive(channel: str) -> bool:
+    def starting(channel: str) -> bool:
         try:
-            check_health(addresses[channel], timeout_s=0.5)
-            return True
+            return check_health(addresses[channel], timeout_s=0.5) == "NOT_SERVING"
         except grpc.RpcError:
             return False
-    return alive
+    return starting
 
 
 def _origin(text: str) -> tuple[float, float, float]:

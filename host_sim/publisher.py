@@ -113,11 +113,12 @@ class FramePublisher:
         sync_timeout_s: longest wait for the acknowledgements of one frame, seconds.
         observers: observers (e.g. the compositor) to wait for before the first frame.
         start_timeout_s: longest wait for all channels and observers to subscribe, seconds;
-            with alive, counted for each missing channel from the last time its worker
-            answered, so a worker still compiling its kernels is waited for as long as it
-            takes, and only a silent one is given up on.
-        alive: whether the worker of a channel answers its health service now (SERVING or
-            NOT_SERVING); None: the start timeout alone decides.
+            with starting, counted for each missing channel from the last time its worker
+            said it was still starting, so a worker compiling its kernels is waited for as
+            long as it takes, and a silent one, or one that serves but never subscribes
+            (e.g. pointed at another host), is given up on.
+        starting: whether the worker of a channel says now that it is still starting (its
+            health NOT_SERVING); None: the start timeout alone decides.
         clock: wall clock, UNIX seconds (time stamps in the frames).
         run_id: identity of the run; a random one by default.
     """
@@ -126,7 +127,7 @@ class FramePublisher:
                  rate_hz: float = 60.0, duration_s: float = 20.0, sync_timeout_s: float = 10.0,
                  observers: int = 0, start_timeout_s: float = 120.0,
                  clock: Callable[[], float] = time.time, run_id: str | None = None,
-                 alive: Callable[[str], bool] | None = None) -> None:
+                 starting: Callable[[str], bool] | None = None) -> None:
         # `not x > 0` rather than `x <= 0` so that NaN is refused too.
         if not (rate_hz > 0 and math.isfinite(rate_hz)):
             raise ValueError(f"rate_hz: {rate_hz} must be a finite number > 0")
@@ -146,7 +147,7 @@ class FramePublisher:
         self.observers = observers
         self.start_timeout_s = start_timeout_s
         self.clock = clock
-        self.alive = alive
+        self.starting = starting
         self.status = HostStatus(run_id=run_id or uuid.uuid4().hex[:12])
         self.status.ack_timeouts = dict.fromkeys(self.channels, 0)
         self.status.ack_failures = dict.fromkeys(self.channels, 0)
@@ -301,24 +302,25 @@ class FramePublisher:
             # The health probes go over the network: never with the lock held, so that
             # subscriptions are not kept waiting.
             now = time.monotonic()
-            if self.alive is not None:
+            if self.starting is not None:
                 for c in missing:
-                    if self.alive(c):
+                    if self.starting(c):
                         heard[c] = now
             if missing:
                 gone = all(now - heard[c] > self.start_timeout_s for c in missing)
             else:
                 gone = now - started > self.start_timeout_s
             if gone:
-                log.warning("starting without channels %s (silent for %.0f s), with %d of %d observers",
+                log.warning("starting without channels %s (not subscribed, not starting, for %.0f s), "
+                            "with %d of %d observers",
                             missing, self.start_timeout_s, observers, self.observers)
                 return
             if now - said >= _START_LOG_S:
                 said = now
-                log.info("waiting for channels %s (their workers answer: still starting) and %d of %d "
+                log.info("waiting for channels %s (their workers are still starting) and %d of %d "
                          "observers", missing, observers, self.observers)
             with self._lock:
-                self._lock.wait(_STOP_POLL_S if self.alive is None else _HEALTH_POLL_S)
+                self._lock.wait(_STOP_POLL_S if self.starting is None else _HEALTH_POLL_S)
 
     def _wait_for_acks(self, number: int, stop: threading.Event) -> None:
         # Only channels with an open subscription can acknowledge; waiting for a worker that is

@@ -34,7 +34,6 @@ from services.rig.cli_common import (
     positive,
 )
 from services.rig.grpc_util import RPC_DEADLINE_S, make_channel
-from services.rig.options import RenderOptions
 from services.rig.rigfile import Rig, rig_toml
 
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
@@ -183,7 +182,9 @@ def run(args: argparse.Namespace) -> int:
     if rig is None:
         return EXIT_BAD_INPUT
     try:
-        RenderOptions(samples=args.samples, filter=args.filter)
+        # The demo's flags over the rig's [render] table, written into the demo's rig file, which
+        # `ig compile` and every worker read: they cannot render with different options.
+        rig = replace(rig, render=rig.render.replace(samples=args.samples, filter=args.filter))
     except ValueError as exc:
         error("demo", exc)
         return EXIT_BAD_INPUT
@@ -240,8 +241,7 @@ def run(args: argparse.Namespace) -> int:
         t0 = time.monotonic()
         print("ig demo: compiling the render kernels once for every worker (minutes on the first "
               "run of these sources, seconds once cached) ...", end="", flush=True)
-        compiler = procs.start("compile", ["compile", "--rig", str(rig_path), "--samples", str(args.samples),
-                                           "--filter", args.filter, *scene])
+        compiler = procs.start("compile", ["compile", "--rig", str(rig_path), *scene])
         while compiler.poll() is None and not stop["why"]:
             time.sleep(0.2)
         print(f" {time.monotonic() - t0:.0f} s", flush=True)
@@ -283,8 +283,7 @@ def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argpar
                                             "--exr-every", str(args.exr_every), "--once"])
     # One numba thread per worker: the workers already run in parallel with each other.
     for ch in rig.channels:
-        procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name,
-                                          "--samples", str(args.samples), "--filter", args.filter, "--once",
+        procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name, "--once",
                                           *scene],
                     env={"NUMBA_NUM_THREADS": "1"})
     procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(args.rate),

@@ -38,6 +38,12 @@ SUBPIXEL_BITS = 8
 SUBPIXEL = 1 << SUBPIXEL_BITS
 
 
+def subpixel_offsets(offsets: np.ndarray) -> np.ndarray:
+    """(S, 2) int64 sample offsets in 1/SUBPIXEL units (every named pattern lies on that grid
+    exactly, so rounding changes none of them)."""
+    return np.round(np.asarray(offsets, np.float64) * SUBPIXEL).astype(np.int64)
+
+
 #: The frame's air (background.air.air_params): one float64 array that every kernel seeing
 #: through the atmosphere takes. First the haze's HAZE_SLOTS (background.haze.haze_params:
 #: [on, beta at the eye, 1 / scale height, r, g, b, eye z]), all zero without haze; then the
@@ -302,8 +308,7 @@ def clear_air() -> np.ndarray:
 def no_background() -> Background:
     """The Background of a scene with neither terrain, haze, fog nor clouds."""
     return Background(False, np.zeros((1, 1, 3), np.float32), np.zeros((1, 1, 1), np.float32),
-                      np.zeros((1, 1), np.float32), False, np.zeros((1, 1, 5), np.float32),
-                      clear_air())
+                      np.zeros((1, 1), np.float32), False, no_cloud(), clear_air())
 
 
 def no_cloud() -> np.ndarray:

@@ -42,12 +42,6 @@ class FrameReport:
         return {"stages_ms": {k: v * 1e3 for k, v in self.stage_seconds.items()},
                 "total_ms": self.total_seconds * 1e3, "counters": dict(self.counters)}
 
-    @classmethod
-    def from_dict(cls, doc: dict[str, Any]) -> FrameReport:
-        """The inverse of to_dict."""
-        return cls({k: float(v) * 1e-3 for k, v in doc.get("stages_ms", {}).items()},
-                   {k: int(v) for k, v in doc.get("counters", {}).items()})
-
     def format(self) -> str:
         """One line: every stage's milliseconds, the total, then the non-zero counters."""
         stages = " ".join(f"{k} {v * 1e3:.2f}" for k, v in self.stage_seconds.items())

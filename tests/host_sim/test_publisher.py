@@ -230,18 +230,19 @@ def test_a_slow_frame_does_not_make_the_host_burst_to_catch_up():
         assert samples[k] - samples[1] >= (k - 1) * period - slack
 
 
-def test_a_worker_that_answers_its_health_is_waited_for_past_the_start_timeout():
-    # "b"'s worker is compiling its kernels: it answers (alive) but does not subscribe until
-    # long after the start timeout. The host waits for it; only then is frame 0 published.
+def test_a_worker_still_starting_is_waited_for_past_the_start_timeout():
+    # "b"'s worker is compiling its kernels: its health says NOT_SERVING (starting) and it does
+    # not subscribe until long after the start timeout. The host waits for it; only then is
+    # frame 0 published.
     answered = []
     late_frames = []
 
-    def alive(channel):
+    def starting(channel):
         answered.append(channel)
         return True
 
     pub = FramePublisher(source=source, channels=["a", "b"], rate_hz=1000.0, duration_s=0.002,
-                         sync_timeout_s=3600.0, start_timeout_s=0.2, alive=alive)
+                         sync_timeout_s=3600.0, start_timeout_s=0.2, starting=starting)
 
     def late_worker():
         time.sleep(1.0)  # five start timeouts
@@ -258,9 +259,11 @@ def test_a_worker_that_answers_its_health_is_waited_for_past_the_start_timeout()
     assert received["a"] == late_frames == list(range(pub.tick_count))
 
 
-def test_a_silent_worker_is_given_up_after_the_start_timeout():
+def test_a_silent_or_serving_but_unsubscribed_worker_is_given_up_after_the_start_timeout():
+    # starting() is False both for a worker that does not answer and for one that answers
+    # SERVING yet never subscribes (pointed at another host): neither holds the rig.
     pub = FramePublisher(source=source, channels=["a", "b"], rate_hz=1000.0, duration_s=0.002,
-                         sync_timeout_s=3600.0, start_timeout_s=0.3, alive=lambda channel: False)
+                         sync_timeout_s=3600.0, start_timeout_s=0.3, starting=lambda channel: False)
     received, _ = run_with_channels(pub, ["a"])
     assert received["a"] == list(range(pub.tick_count))
     assert pub.snapshot().channel_absent["b"] == pub.tick_count

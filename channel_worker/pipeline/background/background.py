@@ -98,8 +98,8 @@ def render_background(database: Database, view: View, frame: FrameConstants,
             clouds = clouds._replace(col_ratio=clouds.col_ratio / grid.ncols,
                                      row_ratio=clouds.row_ratio / grid.nrows)
     else:
-        clouds = CloudImage(False, np.zeros((1, 1, CLOUD_CHANNELS), np.float32), 1.0, 1.0)
         cloud = no_cloud()
+        clouds = CloudImage(False, cloud, 1.0, 1.0)
     out = BackgroundArrays(np.empty((h, w, 3), np.float32), np.empty((h, w, s), np.float32),
                            np.empty((h, w), np.float32), cloud)
     warp_kernel(frame, pre, air, _sky_haze(air, grid), clouds, depth, WARP_BLOCK, out)

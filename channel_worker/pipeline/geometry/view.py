@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from channel_worker.pipeline.contract import SUBPIXEL, FrameConstants, View
+from channel_worker.pipeline.contract import FrameConstants, View, subpixel_offsets
 from channel_worker.pipeline.scene.database import Database
 from services.rig.frame import ChannelSpec, Eyepoint, check_channel, check_eyepoint, hpr_matrix
 
@@ -95,7 +95,7 @@ def frame_constants(view: View, database: Database, offsets: np.ndarray) -> Fram
     offsets = np.ascontiguousarray(offsets, np.float64)
     return FrameConstants(
         width=int(view.width), height=int(view.height), offsets=offsets,
-        offsets_fixed=np.round(offsets * SUBPIXEL).astype(np.int64),
+        offsets_fixed=subpixel_offsets(offsets),
         mapping=np.array(screen_mapping(view), np.float64),
         horizon=np.array(earth_dz_screen(view), np.float64),
         dz_row=earth_dz_row(view), height_above=height_above_earth(database, view),

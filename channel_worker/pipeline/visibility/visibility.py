@@ -29,7 +29,6 @@ import numpy as np
 from channel_worker.pipeline.binning.binning import bin_features
 from channel_worker.pipeline.binning.edges import setup_edges
 from channel_worker.pipeline.contract import (
-    SUBPIXEL,
     Background,
     Bins,
     Edges,
@@ -38,6 +37,7 @@ from channel_worker.pipeline.contract import (
     SampleBuffer,
     ScreenPolygons,
     rgb_array,
+    subpixel_offsets,
 )
 from channel_worker.pipeline.resolve.shading import shading
 from services.rig.options import RenderOptions
@@ -133,10 +133,5 @@ def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np
     edges = setup_edges(screen, width, height)
     bins = bin_features(edges, screen.start, width, height, subarea)
     out = np.zeros((height, width, offsets.shape[0]), np.int32)
-    coverage_kernel(bins, screen, edges, _offsets_fixed(offsets), out)
+    coverage_kernel(bins, screen, edges, subpixel_offsets(offsets), out)
     return out
-
-
-def _offsets_fixed(offsets: np.ndarray) -> np.ndarray:
-    """Sample offsets on the 1/SUBPIXEL grid (every named pattern lies on it exactly)."""
-    return np.round(np.asarray(offsets, np.float64) * SUBPIXEL).astype(np.int64)
