@@ -211,16 +211,48 @@ def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
             near = (depth.need[t]
                     and (texels[c0, r0, PRE_A] > 0.0 or texels[c1, r0, PRE_A] > 0.0
                          or texels[c0, r1, PRE_A] > 0.0 or texels[c1, r1, PRE_A] > 0.0))
+            if not near:
+                for s in range(s_count):
+                    out.inv_z[y, x, s] = 0.0
+                continue
+            # Most samples fall in the same texel cell as the pixel centre: its coverage and
+            # inverse ranges are read once for them all.
+            cell_c = math.floor(c)
+            cell_r = math.floor(rr)
+            cell = (texels[c0, r0, PRE_A], texels[c1, r0, PRE_A], texels[c0, r1, PRE_A],
+                    texels[c1, r1, PRE_A], texels[c0, r0, PRE_IR], texels[c1, r0, PRE_IR],
+                    texels[c0, r1, PRE_IR], texels[c1, r1, PRE_IR])
+            # The eye ray's length per pixel and to first order across it (the second-order
+            # term is ~1e-7 relative at these pixel angles); its world z is linear in the
+            # screen position, so exact.
+            tx = (sx - mapping[1]) * inv_sxs
+            ty = (sy - mapping[3]) * inv_sys
+            ray = math.sqrt(tx * tx + ty * ty + 1.0)
+            grad_x = tx / ray * inv_sxs  # d ray / d sx; guard: ray >= 1
+            grad_y = ty / ray * inv_sys
+            dz = frame.dz_row
+            wz = dz[0] * tx + dz[1] * ty + dz[2]
             for s in range(s_count):
-                out.inv_z[y, x, s] = 0.0
-                if not near:
-                    continue
                 qx = x + offsets[s, 0]
                 qy = y + offsets[s, 1]
-                c, rr = _block_point(qx, qy, blk, frame, pre)
-                out.inv_z[y, x, s] = _sample_inverse_depth(
-                    pre, c, rr, (qx - mapping[1]) * inv_sxs, (qy - mapping[3]) * inv_sys,
-                    frame.dz_row, depth.margin_m)
+                cs, rs = _block_point(qx, qy, blk, frame, pre)
+                if math.floor(cs) == cell_c and math.floor(rs) == cell_r:
+                    ir_s = _cell_inverse_range(cell, cs - cell_c, rs - cell_r)
+                else:
+                    ir_s = _sample_inverse_range(pre, cs, rs)
+                inv_z = 0.0
+                if ir_s > 0.0:
+                    ray_s = ray + (qx - sx) * grad_x + (qy - sy) * grad_y
+                    wz_s = wz + (qx - sx) * dz[0] * inv_sxs + (qy - sy) * dz[1] * inv_sys
+                    # The terrain pushed back by the margin of height: margin / sin(depression)
+                    # of range, the sine floored at 1e-3 (at most 1000 margins), so a polygon
+                    # lying on the terrain (a runway on its pad) wins against terrain rounded
+                    # by interpolation. Guard: ray_s > 0.
+                    push = (depth.margin_m * ray_s / max(-wz_s, 1e-3 * ray_s) if wz_s < 0.0
+                            else depth.margin_m)
+                    # 1/z = ray / (range + push), range = 1 / ir; guard: ir > 0, push >= 0.
+                    inv_z = ray_s * ir_s / (1.0 + push * ir_s)
+                out.inv_z[y, x, s] = inv_z
 
 
 @njit(cache=True, inline="always")
@@ -249,31 +281,45 @@ def _inverse_range(texels, c0, c1, r0, r1, weights):
 
 
 @njit(cache=True, inline="always")
-def _sample_inverse_depth(pre, c, rr, tx, ty, dz_row, margin_m):
-    """1/z (1/metres) a polygon must exceed to be seen in front of the terrain at one sample
-    (pre-image coordinates c, rr; eye ray (tx, ty, 1)), or 0 where the terrain covers less
-    than half of it. The terrain is pushed back by margin_m of height, i.e. margin_m /
-    sin(depression) of range (the sine floored at 1e-3, at most 1000 margins), so a polygon
-    lying on the terrain (a runway on its pad) wins against terrain rounded by
-    interpolation."""
+def _sample_inverse_range(pre, c, rr):
+    """The terrain's inverse range (1/metres) at pre-image coordinates (c, rr), or 0 where it
+    covers less than half of that point."""
     texels = pre.texels
     c0, c1, fc = _columns(c, texels.shape[0], pre.full)
     r0, r1, fr = _rows(rr, texels.shape[1])
-    a00 = (1.0 - fc) * (1.0 - fr) * texels[c0, r0, PRE_A]
-    a10 = fc * (1.0 - fr) * texels[c1, r0, PRE_A]
-    a01 = (1.0 - fc) * fr * texels[c0, r1, PRE_A]
-    a11 = fc * fr * texels[c1, r1, PRE_A]
-    cover = a00 + a10 + a01 + a11
-    if cover < 0.5:
+    return _cell_inverse_range((texels[c0, r0, PRE_A], texels[c1, r0, PRE_A],
+                                texels[c0, r1, PRE_A], texels[c1, r1, PRE_A],
+                                texels[c0, r0, PRE_IR], texels[c1, r0, PRE_IR],
+                                texels[c0, r1, PRE_IR], texels[c1, r1, PRE_IR]), fc, fr)
+
+
+@njit(cache=True, inline="always")
+def _cell_inverse_range(cell, fc, fr):
+    """_inverse_range over one texel cell whose four coverages and inverse ranges are cell
+    (a00, a10, a01, a11, i00, i10, i01, i11), at fractions (fc, fr) across it; 0 where the
+    terrain covers less than half of the point."""
+    a00, a10, a01, a11, i00, i10, i01, i11 = cell
+    w00 = (1.0 - fc) * (1.0 - fr)
+    w10 = fc * (1.0 - fr)
+    w01 = (1.0 - fc) * fr
+    w11 = fc * fr
+    if w00 * a00 + w10 * a10 + w01 * a01 + w11 * a11 < 0.5:
         return 0.0
-    ir = _inverse_range(texels, c0, c1, r0, r1, ((1.0 - fc) * (1.0 - fr), fc * (1.0 - fr),
-                                                 (1.0 - fc) * fr, fc * fr))
-    if ir <= 0.0:
-        return 0.0
-    ray = math.sqrt(tx * tx + ty * ty + 1.0)
-    sin_el = (dz_row[0] * tx + dz_row[1] * ty + dz_row[2]) / ray  # guard: ray >= 1
-    push = margin_m / max(-sin_el, 1e-3) if sin_el < 0.0 else margin_m
-    return ray / (1.0 / ir + push)  # guard: ir > 0
+    num = 0.0
+    den = 0.0
+    if i00 != 0.0:
+        num += w00 * i00
+        den += w00
+    if i10 != 0.0:
+        num += w10 * i10
+        den += w10
+    if i01 != 0.0:
+        num += w01 * i01
+        den += w01
+    if i11 != 0.0:
+        num += w11 * i11
+        den += w11
+    return num / den if den > 0.0 else 0.0  # guard: den > 0
 
 
 @njit(cache=True, inline="always")
@@ -311,6 +357,12 @@ def _cloud_over(clouds, full, c, rr, behind, rgb, out_cloud, y, x):
     a01 = w01 * cloud_pre[c0, r1, 3]
     a11 = w11 * cloud_pre[c1, r1, 3]
     alpha = a00 + a10 + a01 + a11
+    if alpha == 0.0:
+        # Clear air (most pixels, even under a broken layer): premultiplied colour 0 too.
+        for ch in range(4):
+            out_cloud[y, x, ch] = 0.0
+        out_cloud[y, x, 4] = math.inf
+        return rgb
     entry = math.inf
     if alpha > 0.0:
         # Entry range weighted by opacity, over the texels that have cloud (finite entry).

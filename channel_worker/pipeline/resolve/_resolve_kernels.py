@@ -84,9 +84,13 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                 # Most pixels, even in a busy sub-area, see one thing with every sample (with
                 # haze or clouds: one polygon, seen through the air at the pixel's centre).
                 f0 = o_id[base]
-                same = f0 >= 0 or (backdrop != 0 and not sh.by_range)
+                # A pixel whose every sample sees the background takes the background's pixel
+                # colour (already through the air): no per-sample ray.
+                same = f0 >= 0 or background.on or (backdrop != 0 and not sh.by_range)
+                # With a background every sample that no polygon covers sees it, terrain or not.
+                bg_only = f0 < 0 and background.on
                 for s in range(1, s_count):
-                    if o_id[base + s] != f0:
+                    if o_id[base + s] != f0 and not (bg_only and o_id[base + s] < 0):
                         same = False
                         break
                 if same and any_translucent:
@@ -108,6 +112,10 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                         # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
                         cr, cg, cb = polygon_colour(sh, f0, y, x, ray * s_count / iz,
                                                     (dz[0] * rx + dz[1] * ry + dz[2]) / ray, cos_ax)
+                    elif bg_only:
+                        cr = background.rgb[y, x, 0]
+                        cg = background.rgb[y, x, 1]
+                        cb = background.rgb[y, x, 2]
                     else:
                         cr, cg, cb = flat_colour(sh, f0 if f0 >= 0 else backdrop)
                     out_rgb[y, x, 0] = cr
