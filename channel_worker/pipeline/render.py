@@ -91,7 +91,8 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint,
             # only in the sub-areas that hold polygons. A scene without any skips the stage.
             if atmosphere:
                 with clock("background"):
-                    background = render_background(scene, view, frame, options, bins, counters)
+                    background = render_background(scene, view, frame, options, bins, counters,
+                                                   parts=report.part_seconds if report else None)
             if options.filter == "box" and trace is None:
                 # Default quality: pixels straight from each sub-area, no sample store in memory.
                 with clock("visibility"):

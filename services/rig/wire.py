@@ -41,9 +41,11 @@ def report_to_proto(report: FrameReport) -> render_pb2.FrameReport:
     """The message of a frame report."""
     return render_pb2.FrameReport(
         stages=[render_pb2.StageTime(stage=k, seconds=v) for k, v in report.stage_seconds.items()],
-        counters=report.counters)
+        counters=report.counters,
+        parts=[render_pb2.StageTime(stage=k, seconds=v) for k, v in report.part_seconds.items()])
 
 
 def report_from_proto(msg: render_pb2.FrameReport) -> FrameReport:
     """The FrameReport of a message."""
-    return FrameReport({s.stage: s.seconds for s in msg.stages}, dict(msg.counters))
+    return FrameReport({s.stage: s.seconds for s in msg.stages}, dict(msg.counters),
+                       {s.stage: s.seconds for s in msg.parts})

@@ -151,6 +151,12 @@ def test_terrain_voxels_are_reported_per_frame_and_in_total(make_scene, box_mode
     status = w.status()
     assert status.terrain_voxels_last_frame == w.counters.terrain_voxels_last_frame
     assert status.terrain_voxels_total == w.counters.terrain_voxels_total
+    # The background stage's parts: each measured, together inside the stage's time.
+    stages = {s.stage: s.seconds for s in status.last_frame_report.stages}
+    parts = {s.stage: s.seconds for s in status.last_frame_report.parts}
+    assert set(parts) == {"background.scan", "background.clouds", "background.warp"}
+    assert all(v >= 0.0 for v in parts.values())
+    assert sum(parts.values()) <= stages["background"]
 
 
 def test_health_is_not_serving_until_the_worker_can_render(make_scene, box_model_factory):

@@ -15,6 +15,8 @@ painted per pixel (_sky_kernels.sky_earth_kernel).
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from channel_worker.pipeline.contract import (
@@ -50,7 +52,8 @@ WARP_BLOCK = 8
 
 
 def render_background(database: Database, view: View, frame: FrameConstants,
-                      options: RenderOptions, bins: Bins | None, counters: dict[str, int]) -> Background:
+                      options: RenderOptions, bins: Bins | None, counters: dict[str, int], *,
+                      parts: dict[str, float] | None = None) -> Background:
     """The terrain, the sky and earth through haze and fog, and the clouds every sample sees.
 
     Args:
@@ -66,6 +69,9 @@ def render_background(database: Database, view: View, frame: FrameConstants,
         counters: receives "terrain_voxels" (voxels visited), "terrain_columns",
             "terrain_rows", "terrain_eye_clamped", and with fog "fog_table_coarsened" (1 if
             the eye is so far from the strata that the table was coarsened).
+        parts: if given, receives the seconds of "background.scan" (the terrain's column
+            scan), "background.clouds" (the cloud scan) and "background.warp" (the warp and
+            the sky's haze table) where a pre-image is warped.
     """
     terrain = database.terrain
     if terrain is None and database.haze is None and database.fog is None and database.clouds is None:
@@ -81,10 +87,12 @@ def render_background(database: Database, view: View, frame: FrameConstants,
         counters.update(stats)
         return background
     grid = preimage_grid(view)
+    t0 = time.perf_counter()
     if terrain is None:
         pre = _no_terrain(grid)
     else:
         pre = scan_terrain(database, view, grid, air, options.terrain_bias, stats)
+    t1 = time.perf_counter()
     if bins is None:
         depth = SampleDepth(float(database.terrain_margin_m), max(h, w), np.ones(1, np.bool_))
     else:
@@ -100,9 +108,14 @@ def render_background(database: Database, view: View, frame: FrameConstants,
     else:
         cloud = no_cloud()
         clouds = CloudImage(False, cloud, 1.0, 1.0)
+    t2 = time.perf_counter()
     out = BackgroundArrays(np.empty((h, w, 3), np.float32), np.empty((h, w, s), np.float32),
                            np.empty((h, w), np.float32), cloud)
     warp_kernel(frame, pre, air, _sky_haze(air, grid), clouds, depth, WARP_BLOCK, out)
+    if parts is not None:
+        parts["background.scan"] = t1 - t0
+        parts["background.clouds"] = t2 - t1
+        parts["background.warp"] = time.perf_counter() - t2
     counters.update(stats)
     return Background(True, out.rgb, out.inv_z, out.range_m, clouds.on, out.cloud, air)
 

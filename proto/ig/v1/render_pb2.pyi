@@ -41,7 +41,7 @@ class StageTime(_message.Message):
     def __init__(self, stage: _Optional[str] = ..., seconds: _Optional[float] = ...) -> None: ...
 
 class FrameReport(_message.Message):
-    __slots__ = ("stages", "counters")
+    __slots__ = ("stages", "counters", "parts")
     class CountersEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -51,6 +51,8 @@ class FrameReport(_message.Message):
         def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
     STAGES_FIELD_NUMBER: _ClassVar[int]
     COUNTERS_FIELD_NUMBER: _ClassVar[int]
+    PARTS_FIELD_NUMBER: _ClassVar[int]
     stages: _containers.RepeatedCompositeFieldContainer[StageTime]
     counters: _containers.ScalarMap[str, int]
-    def __init__(self, stages: _Optional[_Iterable[_Union[StageTime, _Mapping]]] = ..., counters: _Optional[_Mapping[str, int]] = ...) -> None: ...
+    parts: _containers.RepeatedCompositeFieldContainer[StageTime]
+    def __init__(self, stages: _Optional[_Iterable[_Union[StageTime, _Mapping]]] = ..., counters: _Optional[_Mapping[str, int]] = ..., parts: _Optional[_Iterable[_Union[StageTime, _Mapping]]] = ...) -> None: ...

@@ -25,7 +25,7 @@ def test_frame_report_totals_and_round_trips():
     assert r.total_seconds == pytest.approx(0.0135)
     d = r.to_dict()
     assert d == {"stages_ms": {"view": 1.0, "visibility": 12.5}, "total_ms": pytest.approx(13.5),
-                 "counters": {"translucent_dropped": 3, "terrain_voxels": 0}}
+                 "counters": {"translucent_dropped": 3, "terrain_voxels": 0}, "parts_ms": {}}
     assert list(d["stages_ms"]) == ["view", "visibility"]  # in the order the stages ran
     text = r.format()
     assert "view 1.00" in text and "total 13.50" in text and "translucent_dropped=3" in text
@@ -40,6 +40,21 @@ def test_frame_report_through_the_proto_keeps_stage_order():
     back = report_from_proto(report_to_proto(r))
     assert list(back.stage_seconds) == list(r.stage_seconds)
     assert back.stage_seconds == r.stage_seconds and back.counters == r.counters
+    assert back.part_seconds == {}
+
+
+def test_parts_of_a_stage_are_reported_apart_from_the_total():
+    r = FrameReport({"background": 0.01, "visibility": 0.002}, {},
+                    {"background.scan": 0.006, "background.warp": 0.0035})
+    assert r.total_seconds == pytest.approx(0.012)  # parts lie inside their stage
+    assert r.to_dict()["parts_ms"] == {"background.scan": pytest.approx(6.0),
+                                       "background.warp": pytest.approx(3.5)}
+    assert "parts: background.scan 6.00 background.warp 3.50" in r.format()
+    back = report_from_proto(report_to_proto(r))
+    assert list(back.part_seconds) == ["background.scan", "background.warp"]
+    assert back.part_seconds == r.part_seconds
+    r.clear()
+    assert not r.part_seconds
 
 
 def test_options_through_the_proto_and_unset_fields_keep_the_base():
