@@ -16,13 +16,14 @@ import logging
 import threading
 import time
 from dataclasses import asdict, dataclass
+from typing import Any, NamedTuple
 
 import grpc
 import numpy as np
+from numba import njit
 
 from ig.v1 import (
     compositor_pb2,
-    compositor_pb2_grpc,
     frame_pb2,
     host_pb2,
     host_pb2_grpc,
@@ -44,6 +45,7 @@ from services.rig.options import RenderOptions
 from services.rig.report import FrameReport
 from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_proto
 
+from .pipeline.kernel_cache import serialise_cache_writes
 from .pipeline.render import render_frame
 from .pipeline.scene.database import Database
 
@@ -86,7 +88,98 @@ class StreamEnd(enum.Enum):
 
 def encode_rgb_f16(rgb: np.ndarray) -> bytes:
     """PIXEL_FORMAT_RGB_F16: linear RGB (H, W, 3) as little-endian half floats, top row first."""
-    return np.ascontiguousarray(rgb, dtype="<f2").tobytes()
+    out = np.empty(rgb.shape, "<f2")
+    to_half(rgb, out)
+    return out.tobytes()
+
+
+def to_half(rgb: np.ndarray, out: np.ndarray) -> None:
+    """Round float RGB to IEEE half floats into out (same shape, "<f2"): bit for bit what
+    numpy's astype gives, in a quarter of the time for float32 (1.8 ms instead of 7 for a
+    1024 x 768 channel, on the critical path of every frame).
+
+    Raises:
+        ValueError: out is not a C-contiguous little-endian half-float array of rgb's shape.
+    """
+    if out.shape != rgb.shape or out.dtype != np.dtype("<f2") or not out.flags.c_contiguous:
+        raise ValueError(f"out: {out.dtype} {out.shape} is not a contiguous <f2 array of shape {rgb.shape}")
+    if rgb.dtype == np.float32 and rgb.flags.c_contiguous and np.little_endian:
+        _half_bits(rgb.reshape(-1).view(np.uint32), out.reshape(-1).view(np.uint16))
+    else:
+        np.copyto(out, rgb, casting="unsafe")
+
+
+@njit(cache=True, nogil=True)
+def _half_bits(src, dst):
+    """IEEE float32 bits -> float16 bits, rounding to nearest even, as numpy does (numba has no
+    float16 type, hence the bits; the branches are the cases of the half format)."""
+    for i in range(src.size):
+        u = src[i]
+        sign = (u >> np.uint32(16)) & np.uint32(0x8000)
+        a = u & np.uint32(0x7FFFFFFF)  # magnitude
+        if a >= np.uint32(0x47800000):  # >= 65536 (or inf, NaN): inf, or a quiet NaN
+            h = np.uint32(0x7E00) if a > np.uint32(0x7F800000) else np.uint32(0x7C00)
+        elif a >= np.uint32(0x38800000):  # >= 2^-14: a normal half (65520 and up round to inf)
+            # Re-bias the exponent (127 -> 15) and round the 23-bit mantissa to 10 bits: adding
+            # 0xFFF plus the lowest kept bit before the shift rounds half to even.
+            h = (a + np.uint32(0xC8000FFF) + ((a >> np.uint32(13)) & np.uint32(1))) >> np.uint32(13)
+        elif a >= np.uint32(0x33000000):  # >= 2^-25: a subnormal half, units of 2^-24
+            shift = np.uint32(126) - (a >> np.uint32(23))
+            mantissa = (a & np.uint32(0x7FFFFF)) | np.uint32(0x800000)
+            h = mantissa >> shift
+            rest = mantissa & ((np.uint32(1) << shift) - np.uint32(1))
+            half = np.uint32(1) << (shift - np.uint32(1))
+            if rest > half or (rest == half and (h & np.uint32(1))):
+                h += np.uint32(1)
+        else:  # rounds to zero
+            h = np.uint32(0)
+        dst[i] = np.uint16(h | sign)
+
+
+class ImageSubmission(NamedTuple):
+    """A SubmitChannelImageRequest whose pixels stay in the worker's buffer until the request is
+    serialised (SubmitStub): its fields read as the request's.
+
+    Attributes:
+        head: every field of the request but pixels.
+        pixels: the image as PIXEL_FORMAT_RGB_F16 bytes (a view of the worker's buffer, valid
+            until the next frame is encoded).
+    """
+
+    head: compositor_pb2.SubmitChannelImageRequest
+    pixels: memoryview
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.head, name)
+
+
+#: The wire tag of SubmitChannelImageRequest.pixels: its field number, length-delimited.
+_PIXELS_TAG = bytes([compositor_pb2.SubmitChannelImageRequest.DESCRIPTOR.fields_by_name["pixels"].number << 3 | 2])
+
+
+def serialize_submission(submission: ImageSubmission) -> bytes:
+    """The wire form of the request with its pixels: the other fields serialised by protobuf, the
+    pixels field appended after them (a protobuf parser takes fields in any order).
+
+    The pixels are copied once, into the message: building the request with them would copy
+    them into a bytes object, into the message, and again when gRPC serialises it.
+    """
+    size, length = submission.pixels.nbytes, bytearray()
+    while size >= 0x80:
+        length.append(size & 0x7F | 0x80)
+        size >>= 7
+    length.append(size)
+    return b"".join((submission.head.SerializeToString(), _PIXELS_TAG, length, submission.pixels))
+
+
+class SubmitStub:
+    """CompositorService.SubmitChannelImage taking an ImageSubmission (serialize_submission)."""
+
+    def __init__(self, channel: grpc.Channel) -> None:
+        method = compositor_pb2.DESCRIPTOR.services_by_name["CompositorService"].methods_by_name["SubmitChannelImage"]
+        self.SubmitChannelImage = channel.unary_unary(
+            f"/{method.containing_service.full_name}/{method.name}", request_serializer=serialize_submission,
+            response_deserializer=compositor_pb2.SubmitChannelImageResponse.FromString)
 
 
 class LatestFrame:
@@ -95,11 +188,15 @@ class LatestFrame:
     def __init__(self) -> None:
         self._cond = threading.Condition()
         self._frame: frame_pb2.Frame | None = None
+        self._received = 0.0
         self._ended = False
 
     def put(self, frame: frame_pb2.Frame) -> None:
+        """Replace what is there; the frame's arrival is stamped now (wall clock, UNIX seconds)."""
+        received = time.time()
         with self._cond:
             self._frame = frame
+            self._received = received
             self._cond.notify_all()
 
     def end(self) -> None:
@@ -109,10 +206,15 @@ class LatestFrame:
 
     def take(self, timeout_s: float) -> frame_pb2.Frame | None:
         """The newest frame not taken yet; None if none came within timeout_s seconds."""
+        taken = self.take_stamped(timeout_s)
+        return taken[0] if taken else None
+
+    def take_stamped(self, timeout_s: float) -> tuple[frame_pb2.Frame, float] | None:
+        """As take, with the frame's arrival time (UNIX seconds)."""
         with self._cond:
             self._cond.wait_for(lambda: self._frame is not None or self._ended, timeout=timeout_s)
             frame, self._frame = self._frame, None
-            return frame
+            return (frame, self._received) if frame is not None else None
 
     @property
     def ended(self) -> bool:
@@ -144,9 +246,11 @@ class ChannelWorker:
         self.last_report = FrameReport()
         #: True once a warm-up frame has rendered (kernels compiled or loaded from the cache).
         self.ready = False
-        # One colour array for every frame: it is encoded for the compositor before the next
-        # frame is rendered, and reusing it spares faulting in fresh pages each frame.
+        # One colour array and one half-float array for every frame: the image is encoded and
+        # sent to the compositor before the next frame is rendered, and reusing them spares
+        # faulting in fresh pages each frame.
         self._rgb = np.empty((channel.height, channel.width, 3), np.float32)
+        self._half = np.empty((channel.height, channel.width, 3), "<f2")
         self.once = once
         self.counters = WorkerCounters()
         #: Why the host refused this worker (its channel is not in the host's rig), else "".
@@ -157,17 +261,21 @@ class ChannelWorker:
         self._host = make_channel(host_address)
         self._compositor = make_channel(compositor_address)
         self.host_stub = host_pb2_grpc.HostServiceStub(self._host)
-        self.compositor_stub = compositor_pb2_grpc.CompositorServiceStub(self._compositor)
+        self.compositor_stub = SubmitStub(self._compositor)
         self._last_taken = -1
 
     def warm_up(self) -> None:
         """Compile the numba kernels before the first real frame (several seconds the first time).
 
         Done before subscribing, so the first frames of the run are not held up by the compiler.
+        Cache saves are locked: workers of one machine started on a cold cache without
+        `ig compile` may compile the same kernels at once.
         """
+        serialise_cache_writes()
         tiny = ChannelSpec("warm-up", 8, 6, self.channel.left_deg, self.channel.right_deg,
                            self.channel.bottom_deg, self.channel.top_deg)
-        render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
+        image = render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
+        encode_rgb_f16(image.rgb)  # compiles (or loads) the encoder too
         self.ready = True
 
     def status(self) -> worker_pb2.GetWorkerStatusResponse:
@@ -188,9 +296,9 @@ class ChannelWorker:
                                             name="frame-receiver", daemon=True)
                 receiver.start()
                 while not (stop.is_set() or mailbox.ended):
-                    frame = mailbox.take(0.5)
-                    if frame is not None:
-                        self._handle(frame)
+                    taken = mailbox.take_stamped(0.5)
+                    if taken is not None:
+                        self._handle(*taken)
                 self._cancel_stream()
                 receiver.join()
                 end = outcome[0] if outcome else StreamEnd.STOPPED
@@ -247,12 +355,14 @@ class ChannelWorker:
         with self._lock:
             self.counters.last_error = message
 
-    def _handle(self, frame: frame_pb2.Frame) -> None:
+    def _handle(self, frame: frame_pb2.Frame, received: float | None = None) -> None:
         """Render one frame, submit it to the compositor and acknowledge it to the host.
 
-        Never raises for a bad frame or an unreachable service: those are counted and logged,
-        and the frame is acknowledged with the reason, so the host is not held up.
+        received is when the frame arrived from the host (UNIX seconds; default now). Never
+        raises for a bad frame or an unreachable service: those are counted and logged, and the
+        frame is acknowledged with the reason, so the host is not held up.
         """
+        received = time.time() if received is None else received
         number = frame.frame_number
         with self._lock:
             c = self.counters
@@ -266,6 +376,7 @@ class ChannelWorker:
             c.last_frame_number = number
             c.frames_handled += 1
             skipped = c.frames_skipped
+        render_start = time.time()
         t0 = time.perf_counter()
         try:
             report = FrameReport()
@@ -292,12 +403,18 @@ class ChannelWorker:
             self._ack(number, ok=False, error=str(exc))
             return
         render_time = time.perf_counter() - t0
-        request = compositor_pb2.SubmitChannelImageRequest(
+        render_end = time.time()
+        # The wire format is half floats: rounded into the worker's own buffer, which the
+        # request's serialiser copies once, into the message (ImageSubmission).
+        to_half(image.rgb, self._half)
+        request = ImageSubmission(compositor_pb2.SubmitChannelImageRequest(
             frame_number=number, channel_name=self.channel.name, width=self.channel.width,
             height=self.channel.height, pixel_format=compositor_pb2.PIXEL_FORMAT_RGB_F16,
-            pixels=encode_rgb_f16(image.rgb), eyepoint=frame.eyepoint, render_time_s=render_time,
+            eyepoint=frame.eyepoint, render_time_s=render_time,
             control_sample_time_unix_s=frame.control_sample_time_unix_s,
-            frames_skipped=skipped, run_id=frame.run_id)
+            frames_skipped=skipped, run_id=frame.run_id, frame_received_unix_s=received,
+            render_start_unix_s=render_start, render_end_unix_s=render_end, submit_unix_s=time.time()),
+            self._half.data.cast("B"))
         ok, error = True, ""
         try:
             self.compositor_stub.SubmitChannelImage(request, timeout=RPC_DEADLINE_S)

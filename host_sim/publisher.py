@@ -8,7 +8,6 @@ never lets the channels drift onto different frames.
 
 from __future__ import annotations
 
-import collections
 import logging
 import math
 import threading
@@ -19,6 +18,7 @@ from dataclasses import dataclass, field
 
 from ig.v1 import frame_pb2
 from services.rig.frame import Eyepoint, check_eyepoint
+from services.rig.mailbox import Mailbox
 from services.rig.wire import eyepoint_to_proto
 
 log = logging.getLogger("ig.host")
@@ -45,40 +45,14 @@ class ChannelTaken(ValueError):
     """A second subscriber asked for a channel that already has one (two workers for one window)."""
 
 
-class Subscription:
-    """One subscriber's frame queue: bounded, drop-oldest, closed at the end of the run."""
+class Subscription(Mailbox[frame_pb2.Frame]):
+    """One subscriber's frame queue: bounded (QUEUE_DEPTH), drop-oldest, closed at the end of
+    the run."""
 
     def __init__(self, subscriber: str, channel_name: str) -> None:
+        super().__init__(QUEUE_DEPTH)
         self.subscriber = subscriber
         self.channel_name = channel_name
-        self.dropped = 0
-        self._queue: collections.deque[frame_pb2.Frame] = collections.deque()
-        self._cond = threading.Condition()
-        self._closed = False
-
-    def put(self, frame: frame_pb2.Frame) -> None:
-        with self._cond:
-            if len(self._queue) >= QUEUE_DEPTH:
-                self._queue.popleft()
-                self.dropped += 1
-            self._queue.append(frame)
-            self._cond.notify_all()
-
-    def close(self) -> None:
-        with self._cond:
-            self._closed = True
-            self._cond.notify_all()
-
-    def get(self, timeout_s: float) -> frame_pb2.Frame | None:
-        """The next frame; None if none came within timeout_s or the run is over (see closed)."""
-        with self._cond:
-            self._cond.wait_for(lambda: self._queue or self._closed, timeout=timeout_s)
-            return self._queue.popleft() if self._queue else None
-
-    @property
-    def closed(self) -> bool:
-        with self._cond:
-            return self._closed and not self._queue
 
 
 @dataclass

@@ -18,6 +18,12 @@ COMMANDS = {
              "Start host, one worker per rig channel and the compositor as separate processes on this "
              "machine, fly the bundled flight on the bundled scene, show progress, print the report. "
              "Every process started is stopped on exit, on error and on Ctrl-C."),
+    "latency": ("services.latency", "measure the rig's transport delay: pitch steps on a CAN bus to the composite",
+                "Start the rig as ig demo does, with the host flown by CANaerospace controls on an slcan CAN "
+                "adapter played by this command; step the pitch control, find the first composite whose "
+                "picture shows each response, and report control-to-composite delay (p50/p95/p99/max), its "
+                "hops along the frame's way, and the FAA 14 CFR Part 60 transport-delay limits "
+                "(docs/latency.md)."),
     "render": ("channel_worker.cli_render", "render one frame of one channel to an image file",
                "Render one frame of one channel: .exr holds linear RGB and Z (range, metres), .png holds "
                "sRGB 8-bit."),

@@ -1,8 +1,17 @@
 """`ig demo`: the whole rig as separate processes on this machine, on the bundled flight.
 
-The default rate was chosen by measurement: on the 2-core development machine the default rig
-(three 1024 x 768 channels, 4 samples) renders about 2 frames a second, frame-locked, so
-20 simulated seconds at 15 Hz (301 frames) take about two and a half minutes.
+The host's rate is what the rig sustains (`--rate auto`, the default): after the kernels are
+compiled and the workers are up, a short calibration run publishes the flight's first frames
+as fast as the channels acknowledge them (frame-locked, docs/frame-lock.md), and the median
+interval between their composites sets the rate of the real run. The flight then plays in real
+time at that rate, as long as the rig keeps it up (the calibration frames stand on the runway;
+later views may take longer, and recording takes CPU time): on the 2-core development machine
+the default rig (three 1024 x 768 channels, 4 samples) measured 2.5 Hz and delivered 2.3
+composites a second, 51 frames in 37 s with the compile and the calibration. A fixed `--rate`
+above what the rig sustains slows the simulation instead (frame lock).
+
+The building blocks (the processes, the kernels compiled once, the workers, the calibration)
+serve `ig latency` too (services/latency.py).
 """
 
 from __future__ import annotations
@@ -10,12 +19,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import os
 import signal
 import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 from typing import IO
@@ -23,6 +34,8 @@ from typing import IO
 import grpc
 
 from ig.v1 import compositor_pb2, compositor_pb2_grpc
+from services.compositor.cli import every
+from services.compositor.timing import HOPS
 from services.rig.cli_common import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
@@ -39,31 +52,74 @@ from services.rig.rigfile import Rig, rig_toml
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
 
+#: Frames of the calibration run of --rate auto: the median of their intervals is the rate.
+CALIBRATION_FRAMES = 16
+#: The calibration host's rate, Hz: far above any rig's, so that the frame lock alone paces it.
+_UNTHROTTLED_HZ = 1000.0
+#: The fastest rate --rate auto chooses, Hz (a display's refresh: faster frames would not be shown).
+AUTO_RATE_MAX_HZ = 60.0
+#: The rate when the calibration measured nothing, Hz.
+FALLBACK_RATE_HZ = 15.0
+#: PNGs per simulated second of the demo with --record-every auto. A 3072 x 768 PNG takes
+#: 0.2 s of a core to encode: recording every frame at 3 Hz would take a quarter of a 2-core
+#: machine from the renderers (the recorder never holds the rig up, but it shares the CPU).
+_RECORDED_PER_S = 1.0
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Options of `ig demo`."""
-    parser.add_argument("--rate", type=positive, default=15.0,
-                        help="host frame rate, Hz (default 15: the run is frame-locked, so a rate above what "
-                             "the machine renders only slows the simulation)")
-    parser.add_argument("--duration", type=non_negative, default=20.0,
-                        help="simulated seconds of the bundled flight to fly (default 20)")
+
+def rate_or_auto(text: str) -> float | None:
+    """argparse type: `auto` (None: what the rig sustains) or a finite rate > 0, Hz."""
+    return None if text == "auto" else positive(text)
+
+
+def every_or_auto(text: str) -> int | None:
+    """argparse type: `auto` (None) or a period in frames, a whole number >= 0 (0: never)."""
+    if text == "auto":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither auto nor a whole number of frames") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text} is not >= 0 (0: never)")
+    return value
+
+
+def add_rig_options(parser: argparse.ArgumentParser, *, out: str) -> None:
+    """The options `ig demo` and `ig latency` share: the rig, its size and render options, the scene."""
     parser.add_argument("--width", type=pixels, default=None, help="override every channel's width, pixels")
     parser.add_argument("--height", type=pixels, default=None, help="override every channel's height, pixels")
     parser.add_argument("--samples", default="4", help="samples per pixel, a count or a pattern name (default 4)")
     parser.add_argument("--filter", default="box",
                         help="pixel reconstruction filter: box, tent, gaussian (default box)")
-    parser.add_argument("--exr-every", type=int, default=30,
-                        help="also write a linear EXR every N frames (default 30; 0: never)")
-    parser.add_argument("--out", default="out/demo",
-                        help="output directory: frames/, report.json, rig.toml, logs/ (default out/demo)")
     parser.add_argument("--scene", default=None,
                         help="scene JSON (default: the bundled airfield on the bundled terrain, "
                              "with haze and clouds)")
     parser.add_argument("--rig", default=None,
                         help="rig file (default: the bundled three-channel rig); its addresses are replaced "
                              "by free ports on 127.0.0.1")
-    parser.add_argument("--verbose", action="store_true", help="show the processes' logs instead of writing "
-                                                               "them to OUT/logs")
+    parser.add_argument("--verbose", action="store_true",
+                        help=f"show the processes' logs instead of writing them to {out}/logs")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `ig demo`."""
+    parser.add_argument("--rate", type=rate_or_auto, default=None,
+                        help="host frame rate, Hz, or auto (default): what the rig sustains, measured by a "
+                             f"calibration run of {CALIBRATION_FRAMES} frames published as fast as the channels "
+                             f"render them (at most {AUTO_RATE_MAX_HZ:g} Hz). The run is frame-locked: a rate "
+                             "above what the rig renders slows the simulation")
+    parser.add_argument("--duration", type=non_negative, default=20.0,
+                        help="simulated seconds of the bundled flight to fly (default 20)")
+    parser.add_argument("--record-every", type=every_or_auto, default=None,
+                        help=f"write the stitched frame as PNG every N frames, or auto (default): about "
+                             f"{_RECORDED_PER_S:g} per simulated second. Recording never holds the rig up: a frame "
+                             "due while the writer is behind is left out and counted (each PNG costs CPU time, "
+                             "though: 0.2 s of a core at the default size)")
+    parser.add_argument("--exr-every", type=every, default=30,
+                        help="also write a linear EXR every N frames (default 30; 0: never)")
+    parser.add_argument("--out", default="out/demo",
+                        help="output directory: frames/, report.json, rig.toml, logs/ (default out/demo)")
+    add_rig_options(parser, out="OUT")
 
 
 def free_port() -> int:
@@ -95,18 +151,27 @@ class Processes:
         self.procs: dict[str, subprocess.Popen] = {}
         self._logs: list[IO[str]] = []
 
-    def start(self, name: str, argv: list[str], env: dict[str, str] | None = None) -> subprocess.Popen:
-        """Start `python -m services.cli ARGV` as name; its output goes to LOG_DIR/name.log."""
+    def start(self, name: str, argv: list[str], env: dict[str, str] | None = None, *,
+              show: bool = False) -> subprocess.Popen:
+        """Start `python -m services.cli ARGV` as name; its output goes to LOG_DIR/name.log, or
+        to the terminal with show (a process whose progress the user waits on)."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         # Kept open for the process's life, closed by stop_all.
-        out = None if self.verbose else open(self.log_dir / f"{name}.log", "w")  # noqa: SIM115
+        out = None if self.verbose or show else open(self.log_dir / f"{name}.log", "w")  # noqa: SIM115
         if out is not None:
             self._logs.append(out)
-        proc = subprocess.Popen([sys.executable, "-m", "services.cli", *argv], stdout=out,
-                                stderr=subprocess.STDOUT, env={**os.environ, **(env or {})},
-                                start_new_session=True)
+        # Shown, its errors stay on the terminal's error stream.
+        err = None if show and not self.verbose else subprocess.STDOUT
+        proc = subprocess.Popen([sys.executable, "-m", "services.cli", *argv], stdout=out, stderr=err,
+                                env={**os.environ, **(env or {})}, start_new_session=True)
         self.procs[name] = proc
         return proc
+
+    def terminate(self, name: str) -> None:
+        """SIGTERM one process (its group) if it is still running."""
+        proc = self.procs.get(name)
+        if proc is not None and proc.poll() is None:
+            _signal_group(proc, signal.SIGTERM)
 
     def failed(self) -> dict[str, int]:
         """Processes that have exited with a non-zero code, and their codes."""
@@ -163,33 +228,78 @@ def format_report(doc: dict) -> str:
     rows += [(f"host ack timeouts: {k}", v) for k, v in host.get("ack_timeouts", {}).items()]
     if "eyepoints_rejected" in host:
         rows.append(("host eyepoints rejected", host["eyepoints_rejected"]))
-    rows += [("frames written", doc["frames_written"]), ("write errors", doc["write_errors"])]
-    width = max(len(r[0]) for r in rows)
-    lines = [f"  {k:<{width}}  {v}" for k, v in rows]
-    lines.append("")
-    lines.append(f"  {'milliseconds':<{width}}  {'p50':>9} {'p95':>9} {'p99':>9}")
+    rows += [("frames written", doc["frames_written"]),
+             ("frames not recorded (writer behind)", doc.get("frames_not_recorded", 0)),
+             ("write errors", doc["write_errors"])]
+    rate = doc.get("composite_rate_hz")
+    rows.append(("composites per second (median)", f"{rate:.2f}" if rate else "-"))
     figures = [(f"render {c}", p) for c, p in doc["render_time"].items()]
     figures.append(("control-to-composite latency", doc["control_to_composite_latency"]))
+    chain = doc.get("latency_chain") or {}
+    figures += [(f"  {key}", chain[key]) for key, _ in HOPS if key in chain]
+    width = max(len(r[0]) for r in rows + figures)
+    lines = [f"  {k:<{width}}  {v}" for k, v in rows]
+    lines.append("")
+    lines.append(f"  {'milliseconds':<{width}}  {'p50':>9} {'p95':>9} {'p99':>9} {'max':>9}")
+    if chain:
+        critical = ", ".join(f"{c} {n}" for c, n in (doc.get("critical_channel") or {}).items())
+        lines.append(f"  (the chain below the latency follows the channel the composite waited for: {critical})")
     for name, p in figures:
-        cells = " ".join(f"{p[k]:9.1f}" if p[k] is not None else f"{'-':>9}" for k in ("p50_ms", "p95_ms", "p99_ms"))
-        lines.append(f"  {name:<{width}}  {cells}")
+        lines.append(f"  {name:<{width}}  {milliseconds_cells(p)}")
     return "\n".join(lines)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
-    rig = load_rig_or_report(args.rig, "demo")
+def milliseconds_cells(p: dict) -> str:
+    """p50, p95, p99 and max of a percentiles() dict as right-aligned cells ("-" without data)."""
+    return " ".join(f"{p[k]:9.1f}" if p.get(k) is not None else f"{'-':>9}"
+                    for k in ("p50_ms", "p95_ms", "p99_ms", "max_ms"))
+
+
+class StopFlag:
+    """Set by SIGINT and SIGTERM while installed (see stop_flag); read by every wait loop.
+
+    The handlers only raise the flag: an exception raised from a handler can land inside a
+    gRPC call of a progress poll and be lost there.
+    """
+
+    def __init__(self) -> None:
+        self.why: str | None = None
+
+
+@contextlib.contextmanager
+def stop_flag() -> Iterator[StopFlag]:
+    """A StopFlag that Ctrl-C and SIGTERM raise while the context lasts."""
+    flag = StopFlag()
+
+    def on_signal(signum, frame):
+        flag.why = "interrupted" if signum == signal.SIGINT else "terminated"
+
+    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield flag
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+def prepare_rig(command: str, args: argparse.Namespace) -> tuple[Rig, str] | int:
+    """The rig of args with its render options, size and free local ports, and the scene path
+    (a bundled terrain built once here); or the exit code after printing why not.
+
+    Checks everything before anything is written or started.
+    """
+    rig = load_rig_or_report(args.rig, command)
     if rig is None:
         return EXIT_BAD_INPUT
     try:
-        # The demo's flags over the rig's [render] table, written into the demo's rig file, which
+        # The flags over the rig's [render] table, written into the run's rig file, which
         # `ig compile` and every worker read: they cannot render with different options.
         rig = replace(rig, render=rig.render.replace(samples=args.samples, filter=args.filter))
     except ValueError as exc:
-        error("demo", exc)
+        error(command, exc)
         return EXIT_BAD_INPUT
     if args.scene and not Path(args.scene).is_file():
-        error("demo", f"--scene: {args.scene!r} is not a file")
+        error(command, f"--scene: {args.scene!r} is not a file")
         return EXIT_BAD_INPUT
     from channel_worker.pipeline.scene.load import SceneError, demo_scene_path, load_scene
 
@@ -197,16 +307,101 @@ def run(args: argparse.Namespace) -> int:
     if not args.scene:
         # Build the bundled terrain once here (a few seconds on first use) instead of in every
         # worker at once. A scene of the user's is checked by the workers, whose errors end
-        # the demo with their message.
+        # the run with their message.
         try:
             load_scene(scene_path)
         except SceneError as exc:
-            error("demo", exc)
+            error(command, exc)
             return EXIT_FAILED
     if args.width or args.height:
         first = rig.channels[0].spec
         rig = rig.with_size(args.width or first.width, args.height or first.height)
-    rig = local_rig(rig)
+    return local_rig(rig), scene_path
+
+
+Failure = tuple[str, int]
+"""A process that exited with an error: its name and exit code."""
+
+
+def compile_kernels(procs: Processes, command: str, rig_path: Path, scene: list[str],
+                    stop: StopFlag) -> Failure | None:
+    """Compile the kernels once, into the cache every worker then loads them from: three
+    workers compiling at once on a small machine would take minutes while the host waits."""
+    t0 = time.monotonic()
+    print(f"ig {command}: compiling the render kernels once for every worker (about a minute on the first "
+          "run of these sources, a second once cached)", flush=True)
+    # Its progress (groups done, the kernel each process compiles) straight to the terminal.
+    compiler = procs.start("compile", ["compile", "--rig", str(rig_path), *scene], show=True)
+    while compiler.poll() is None and not stop.why:
+        time.sleep(0.2)
+    print(f"ig {command}: kernels ready in {time.monotonic() - t0:.0f} s", flush=True)
+    return ("compile", compiler.returncode) if compiler.returncode not in (None, 0) else None
+
+
+def start_workers(procs: Processes, rig: Rig, rig_path: Path, scene: list[str]) -> None:
+    """One worker per channel, with one numba thread each (they already run in parallel with each
+    other). They serve every run of the host at the rig's address until stopped (stop_all), so
+    a calibration run and the real one share them, kernels loaded once."""
+    for ch in rig.channels:
+        procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name, *scene],
+                    env={"NUMBA_NUM_THREADS": "1"})
+
+
+def wait_for_exit(procs: Processes, proc: subprocess.Popen, stop: StopFlag, *,
+                  timeout_s: float = math.inf) -> Failure | None:
+    """Wait until proc exits (at most timeout_s seconds); (name, code) of the first process that
+    failed meanwhile, if any."""
+    deadline = time.monotonic() + timeout_s
+    while proc.poll() is None and not stop.why and time.monotonic() < deadline:
+        failed = procs.failed()
+        if failed:
+            return next(iter(failed.items()))
+        time.sleep(0.2)
+    failed = procs.failed()
+    return next(iter(failed.items())) if failed else None
+
+
+def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
+                   stop: StopFlag) -> tuple[float, Failure | None]:
+    """The rate the rig sustains, Hz, measured with the workers already started.
+
+    The host publishes the bundled flight's first CALIBRATION_FRAMES frames as fast as every
+    channel acknowledges them (frame-locked at a rate no rig reaches); the compositor (recording
+    nothing) reports the median interval between their composites. At most AUTO_RATE_MAX_HZ;
+    FALLBACK_RATE_HZ if nothing was measured. Both processes have exited on return, so the
+    real run can take their addresses.
+    """
+    print(f"ig {command}: measuring the rate the rig sustains ({CALIBRATION_FRAMES} frames, unthrottled) ...",
+          end="", flush=True)
+    report = out / "report.json"
+    report.unlink(missing_ok=True)
+    compositor = procs.start("compositor-calibration", [
+        "compositor", "--rig", str(rig_path), "--out", str(out), "--record-every", "0", "--exr-every", "0",
+        "--once"])
+    host = procs.start("host-calibration", [
+        "host", "--rig", str(rig_path), "--rate", str(_UNTHROTTLED_HZ),
+        "--duration", repr((CALIBRATION_FRAMES - 1) / _UNTHROTTLED_HZ)])
+    failure = wait_for_exit(procs, compositor, stop) or wait_for_exit(procs, host, stop)
+    measured = None
+    if report.exists():
+        measured = json.loads(report.read_text()).get("composite_rate_hz")
+    if failure or stop.why:
+        print(flush=True)
+        return FALLBACK_RATE_HZ, failure
+    if not measured:
+        print(f" nothing measured; {FALLBACK_RATE_HZ:g} Hz", flush=True)
+        return FALLBACK_RATE_HZ, None
+    rate = min(float(measured), AUTO_RATE_MAX_HZ)
+    print(f" {measured:.2f} Hz" + (f", capped at {rate:g} Hz" if rate < measured else ""), flush=True)
+    return rate, None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
+    prepared = prepare_rig("demo", args)
+    if isinstance(prepared, int):
+        return prepared
+    rig, scene_path = prepared
     out = Path(args.out)
     frames_dir = out / "frames"
     try:
@@ -218,45 +413,24 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         error("demo", f"--out: {exc}")
         return EXIT_BAD_INPUT
-    expected = int(round(args.duration * args.rate)) + 1
     procs = Processes(out / "logs", args.verbose)
     print(f"ig demo: {len(rig.channels)} channels ({', '.join(rig.channel_names)}), "
-          f"{rig.channels[0].spec.width} x {rig.channels[0].spec.height} each, {expected} frames at "
-          f"{args.rate:g} Hz; logs in {out / 'logs'}", flush=True)
+          f"{rig.channels[0].spec.width} x {rig.channels[0].spec.height} each, {args.duration:g} simulated "
+          f"seconds; logs in {out / 'logs'}", flush=True)
     scene = ["--scene", scene_path]
-
-    # Ctrl-C and SIGTERM only raise a flag that the watch loop reads every second: an exception
-    # raised from a handler can land inside a gRPC call of the progress poll and be lost there.
-    stop: dict[str, str | None] = {"why": None}
-
-    def on_signal(signum, frame):
-        stop["why"] = "interrupted" if signum == signal.SIGINT else "terminated"
-
-    previous = {sig: signal.signal(sig, on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     started = time.monotonic()
-    failure = None
-    try:
-        # The kernels compile once, here, into the cache every worker then loads from: three
-        # workers compiling at once on a small machine would take minutes while the host waits.
-        t0 = time.monotonic()
-        print("ig demo: compiling the render kernels once for every worker (minutes on the first "
-              "run of these sources, seconds once cached) ...", end="", flush=True)
-        compiler = procs.start("compile", ["compile", "--rig", str(rig_path), *scene])
-        while compiler.poll() is None and not stop["why"]:
-            time.sleep(0.2)
-        print(f" {time.monotonic() - t0:.0f} s", flush=True)
-        if compiler.returncode not in (None, 0):
-            failure = ("compile", compiler.returncode)
-        elif not stop["why"]:
-            failure = _run_rig(procs, rig, rig_path, out, args, scene, expected, stop)
-        if stop["why"]:
-            print(f"\nig demo: {stop['why']}; stopping every process", file=sys.stderr)
+    failure, rate = None, 0.0
+    with stop_flag() as stop:
+        try:
+            failure = compile_kernels(procs, "demo", rig_path, scene, stop)
+            if not failure and not stop.why:
+                failure, rate = _run_rig(procs, rig, rig_path, out, args, scene, stop)
+            if stop.why:
+                print(f"\nig demo: {stop.why}; stopping every process", file=sys.stderr)
+                procs.stop_all()
+                return EXIT_INTERRUPTED if stop.why == "interrupted" else EXIT_FAILED
+        finally:
             procs.stop_all()
-            return EXIT_INTERRUPTED if stop["why"] == "interrupted" else EXIT_FAILED
-    finally:
-        procs.stop_all()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
     if failure:
         name, code = failure
         print(f"ig demo: {name} exited with code {code}; every process was stopped", file=sys.stderr)
@@ -271,40 +445,60 @@ def run(args: argparse.Namespace) -> int:
     doc = json.loads(report_path.read_text())
     print(format_report(doc))
     print(f"\n{doc['frames_complete']} stitched frames in {time.monotonic() - started:.0f} s wall-clock")
+    achieved = doc.get("composite_rate_hz")
+    if achieved:
+        print(f"composites came at {achieved:.2f} Hz (median) for a host rate of {rate:g} Hz" +
+              (f": the rig was slower, so the flight ran at {achieved / rate:.0%} of real time"
+               if achieved < 0.95 * rate else ""))
+    if doc.get("frames_not_recorded"):
+        print(f"{doc['frames_not_recorded']} frames due for recording were left out: the writer was behind "
+              "(record fewer with --record-every)")
     print(f"frames: {frames_dir}/frame_NNNNNN.png\nreport: {report_path}")
     ok = doc["frames_complete"] > 0 and not any(doc["frames_incomplete"].values())
     return EXIT_OK if ok else EXIT_FAILED
 
 
+def record_every_for(rate_hz: float) -> int:
+    """--record-every auto: about _RECORDED_PER_S PNGs per simulated second, at least every frame."""
+    return max(1, math.floor(rate_hz / _RECORDED_PER_S))
+
+
 def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argparse.Namespace,
-             scene: list[str], expected: int, stop: dict[str, str | None]) -> tuple[str, int] | None:
-    """Start the compositor, a worker per channel and the host; watch until the run is over."""
+             scene: list[str], stop: StopFlag) -> tuple[Failure | None, float]:
+    """Start a worker per channel, measure the rate if asked, then the compositor and the host;
+    watch until the run is over. Returns the first failure, and the host's rate, Hz."""
+    start_workers(procs, rig, rig_path, scene)
+    rate = args.rate
+    if rate is None:
+        rate, failure = calibrate_rate(procs, "demo", rig_path, out / "calibration", stop)
+        if failure or stop.why:
+            return failure, rate
+        rate = round(rate, 2)
+    record_every = args.record_every if args.record_every is not None else record_every_for(rate)
+    expected = int(round(args.duration * rate)) + 1
+    print(f"ig demo: {expected} frames at {rate:g} Hz, PNG every {record_every} frame(s), EXR every "
+          f"{args.exr_every}", flush=True)
     compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
-                                            "--exr-every", str(args.exr_every), "--once"])
-    # One numba thread per worker: the workers already run in parallel with each other.
-    for ch in rig.channels:
-        procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name, "--once",
-                                          *scene],
-                    env={"NUMBA_NUM_THREADS": "1"})
-    procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(args.rate),
-                         "--duration", str(args.duration)])
-    return _watch(procs, compositor, rig.compositor_address, expected, stop)
+                                            "--record-every", str(record_every), "--exr-every", str(args.exr_every),
+                                            "--once"])
+    procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(rate), "--duration", str(args.duration)])
+    return _watch(procs, compositor, rig.compositor_address, expected, stop), rate
 
 
 def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expected: int,
-           stop: dict[str, str | None]) -> tuple[str, int] | None:
+           stop: StopFlag) -> Failure | None:
     """Show progress until the compositor exits; (name, exit code) of the first process that failed.
 
     One failed process ends the demo at once: without it the host would wait out its start
-    and sync timeouts for a channel that will never answer. A raised stop["why"] (a signal)
+    and sync timeouts for a channel that will never answer. A raised stop flag (a signal)
     ends the watch within a second.
     """
     # On a terminal the progress line is redrawn every second; in a log, a line every 10 s.
     tty = sys.stdout.isatty()
     last, next_line = "", 0.0
-    while compositor.poll() is None and not stop["why"]:
+    while compositor.poll() is None and not stop.why:
         time.sleep(1.0)
-        if stop["why"]:
+        if stop.why:
             break
         failed = procs.failed()
         if failed:

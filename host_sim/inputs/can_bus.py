@@ -90,8 +90,15 @@ class CanSource(ControlSource):
         super().__init__(name, **kw)
         import can  # optional dependency (the `devices` extra), imported only when used
 
+        options = dict(options or {})
+        if interface == "slcan":
+            # python-can's slcan reads the adapter a byte at a time and, when nothing is waiting,
+            # blocks for its serial timeout (1 ms by default): 1 ms of every flight-model step,
+            # 7 ms of a frame at 15 Hz, on the way from the controls to the picture. The host
+            # polls, so it never needs to wait.
+            options.setdefault("timeout", 0.0)
         try:
-            self.bus = can.Bus(interface=interface, channel=channel, **(options or {}))
+            self.bus = can.Bus(interface=interface, channel=channel, **options)
         except (can.CanError, ValueError, OSError, ImportError, NotImplementedError) as exc:
             raise ValueError(f"{name}: cannot open CAN interface {interface!r} channel {channel!r}: {exc}") from exc
         self._can = can

@@ -24,7 +24,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="out/compositor",
                         help="output directory: frames/frame_NNNNNN.png (and .exr) and report.json "
                              "(default out/compositor)")
-    parser.add_argument("--exr-every", type=int, default=30,
+    parser.add_argument("--record-every", type=every, default=1,
+                        help="write the stitched frame as PNG every N frames (default 1; 0: never). Recording "
+                             "never holds the rig up: a frame due while the writer is behind is left out and "
+                             "counted (frames_not_recorded in report.json)")
+    parser.add_argument("--exr-every", type=every, default=30,
                         help="also write a linear half-float EXR every N frames (default 30; 0: never)")
     parser.add_argument("--pending-timeout", type=positive, default=30.0,
                         help="a frame still missing images this many seconds after it was published is "
@@ -34,6 +38,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--grace", type=non_negative, default=5.0,
                         help="at the end of the run, wait this long for images of open frames, seconds "
                              "(default 5)")
+
+
+def every(text: str) -> int:
+    """argparse type: a period in frames, a whole number >= 0 (0: never)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of frames") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text} is not >= 0 (0: never)")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:
@@ -47,8 +62,8 @@ def run(args: argparse.Namespace) -> int:
     rig = load_rig_or_report(args.rig, "compositor")
     if rig is None:
         return EXIT_BAD_INPUT
-    compositor = Compositor(rig.channel_names, Path(args.out), exr_every=args.exr_every,
-                            pending_timeout_s=args.pending_timeout)
+    compositor = Compositor(rig.channel_names, Path(args.out), record_every=args.record_every,
+                            exr_every=args.exr_every, pending_timeout_s=args.pending_timeout)
     stop = threading.Event()
     stop_on_signals(stop)
     try:

@@ -43,16 +43,40 @@ class InvalidSubmission(ValueError):
 
 
 @dataclass(frozen=True)
+class ChannelTiming:
+    """Where one channel's image of a frame was when, UNIX seconds (docs/latency.md).
+
+    The first four are the worker's wall clock, the last the compositor's: across machines they
+    are only as comparable as the clocks are synchronised (deploy/README.md). 0.0: not reported
+    (a worker from before these fields).
+
+    Attributes:
+        frame_received: the worker received the frame from the host.
+        render_start: the worker started rendering it.
+        render_end: the worker finished rendering it.
+        submit: the worker handed the encoded image to gRPC.
+        compositor_receive: the compositor received the image.
+    """
+
+    frame_received: float = 0.0
+    render_start: float = 0.0
+    render_end: float = 0.0
+    submit: float = 0.0
+    compositor_receive: float = 0.0
+
+
+@dataclass(frozen=True)
 class ChannelImage:
     """A validated channel image.
 
     Attributes:
         channel: rig channel name.
-        rgb: (H, W, 3) float16 linear RGB, top row first.
+        rgb: (H, W, 3) float16 linear RGB, top row first (a read-only view of the received bytes).
         eyepoint: the eyepoint the channel rendered: x, y, z metres, heading, pitch, roll degrees.
         render_time_s: seconds the channel spent rendering.
         control_sample_time: UNIX seconds of the control sample the frame was computed from.
         frames_skipped: the worker's skipped-frame counter when it submitted.
+        timing: the image's time stamps on its way to the compositor.
     """
 
     channel: str
@@ -61,6 +85,7 @@ class ChannelImage:
     render_time_s: float
     control_sample_time: float
     frames_skipped: int
+    timing: ChannelTiming = ChannelTiming()
 
 
 @dataclass(frozen=True)
@@ -73,6 +98,8 @@ class CompleteFrame:
         eyepoint: the published eyepoint (as ChannelImage.eyepoint).
         control_sample_time: UNIX seconds of the control sample the frame was computed from.
         images: one per rig channel, in display order, left to right.
+        publish_time: UNIX seconds when the host published the frame.
+        run_id: the host's run.
     """
 
     frame_number: int
@@ -80,6 +107,8 @@ class CompleteFrame:
     eyepoint: tuple[float, ...]
     control_sample_time: float
     images: tuple[ChannelImage, ...]
+    publish_time: float = 0.0
+    run_id: str = ""
 
 
 @dataclass
@@ -87,7 +116,7 @@ class _Open:
     """A frame not decided yet: what the host published (if seen) and the images so far."""
 
     since: float  # monotonic seconds when the compositor first heard of the frame
-    published: tuple[tuple[float, ...], float, float] | None = None  # eyepoint, sim time, sample time
+    published: frame_pb2.Frame | None = None  # what the host published
     images: dict[str, ChannelImage] = field(default_factory=dict)
 
 
@@ -102,12 +131,12 @@ def same_bits(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
 
 
 def percentiles(values: Sequence[float]) -> dict[str, float | int | None]:
-    """p50, p95, p99 in milliseconds of values in seconds (None without data), and the count."""
-    if not values:
-        return {"p50_ms": None, "p95_ms": None, "p99_ms": None, "count": 0}
+    """p50, p95, p99 and max in milliseconds of values in seconds (None without data), and the count."""
+    if not len(values):
+        return {"p50_ms": None, "p95_ms": None, "p99_ms": None, "max_ms": None, "count": 0}
     a = np.asarray(values, dtype=np.float64) * 1000.0
     p50, p95, p99 = (round(float(v), 3) for v in np.percentile(a, [50, 95, 99]))
-    return {"p50_ms": p50, "p95_ms": p95, "p99_ms": p99, "count": int(a.size)}
+    return {"p50_ms": p50, "p95_ms": p95, "p99_ms": p99, "max_ms": round(float(a.max()), 3), "count": int(a.size)}
 
 
 class FrameGatherer:
@@ -123,14 +152,17 @@ class FrameGatherer:
         on_complete: called (outside the lock) with every complete frame, in frame order.
         pending_timeout_s: longest a frame stays open, seconds (see expire).
         monotonic: clock for pending_timeout_s, seconds.
+        clock: wall clock, UNIX seconds: the time an image is received (ChannelTiming).
     """
 
     def __init__(self, channels: Sequence[str], on_complete: Callable[[CompleteFrame], None], *,
-                 pending_timeout_s: float = 30.0, monotonic: Callable[[], float] = time.monotonic) -> None:
+                 pending_timeout_s: float = 30.0, monotonic: Callable[[], float] = time.monotonic,
+                 clock: Callable[[], float] = time.time) -> None:
         self.channels = tuple(channels)
         self.on_complete = on_complete
         self.pending_timeout_s = pending_timeout_s
         self.monotonic = monotonic
+        self.clock = clock
         self._lock = threading.Lock()
         self._open: dict[int, _Open] = {}
         self._decided: dict[int, str] = {}  # frame number -> "complete" or incomplete cause
@@ -155,7 +187,7 @@ class FrameGatherer:
             entry = self._entry(frame.frame_number)
             if entry is None:
                 return
-            entry.published = (eyepoint_tuple(frame.eyepoint), frame.sim_time_s, frame.control_sample_time_unix_s)
+            entry.published = frame
             ready = self._settle(frame.frame_number)
         self._emit(ready)
 
@@ -167,8 +199,9 @@ class FrameGatherer:
                 format, another run's image, a second image for the same channel and frame. The
                 frame is not touched; the rejection is counted by cause.
         """
+        received = self.clock()
         try:
-            image = self._validate(request)
+            image = self._validate(request, received)
             with self._lock:
                 if request.run_id and self.run_id and request.run_id != self.run_id:
                     raise InvalidSubmission(OTHER_RUN, f"run_id: {request.run_id!r} is not the current run "
@@ -241,7 +274,7 @@ class FrameGatherer:
             entry = self._open[number] = _Open(since=self.monotonic())
         return entry
 
-    def _validate(self, r: compositor_pb2.SubmitChannelImageRequest) -> ChannelImage:
+    def _validate(self, r: compositor_pb2.SubmitChannelImageRequest, received: float) -> ChannelImage:
         if r.channel_name not in self.channels:
             raise InvalidSubmission(UNKNOWN_CHANNEL, f"channel_name: {r.channel_name!r} is not a channel of the rig "
                                                      f"({', '.join(self.channels)})")
@@ -256,19 +289,25 @@ class FrameGatherer:
                 compositor_pb2.PixelFormat.values() else str(r.pixel_format)
             raise InvalidSubmission(BAD_PIXELS, f"pixel_format: {name} is not PIXEL_FORMAT_RGB_F16")
         expected = r.width * r.height * 3 * 2
-        if r.width == 0 or r.height == 0 or len(r.pixels) != expected:
-            raise InvalidSubmission(BAD_PIXELS, f"pixels: {len(r.pixels)} bytes, expected {expected} for "
+        # Each read of a bytes field hands out a fresh copy of it: read the pixels once, and keep
+        # them as a view of that copy (the stitch is the only other copy the compositor makes).
+        pixels = r.pixels
+        if r.width == 0 or r.height == 0 or len(pixels) != expected:
+            raise InvalidSubmission(BAD_PIXELS, f"pixels: {len(pixels)} bytes, expected {expected} for "
                                                 f"{r.width} x {r.height} RGB half floats")
-        rgb = np.frombuffer(r.pixels, dtype="<f2").reshape(r.height, r.width, 3)
+        rgb = np.frombuffer(pixels, dtype="<f2").reshape(r.height, r.width, 3)
+        timing = ChannelTiming(r.frame_received_unix_s, r.render_start_unix_s, r.render_end_unix_s,
+                               r.submit_unix_s, received)
         return ChannelImage(r.channel_name, rgb, eyepoint_tuple(r.eyepoint), r.render_time_s,
-                            r.control_sample_time_unix_s, r.frames_skipped)
+                            r.control_sample_time_unix_s, r.frames_skipped, timing)
 
     def _settle(self, number: int) -> list[CompleteFrame]:
         """Decide frame number if it can be decided now (lock held)."""
         entry = self._open.get(number)
         if entry is None or entry.published is None or len(entry.images) < len(self.channels):
             return []
-        eyepoint, sim_time, sample_time = entry.published
+        published = entry.published
+        eyepoint = eyepoint_tuple(published.eyepoint)
         wrong = [img.channel for img in entry.images.values() if not same_bits(img.eyepoint, eyepoint)]
         if wrong:
             self._decide(number, EYEPOINT_MISMATCH, f"channels {', '.join(wrong)} rendered another eyepoint")
@@ -278,7 +317,8 @@ class FrameGatherer:
             self._decide(older, MISSING_CHANNEL)
         images = tuple(entry.images[c] for c in self.channels)
         self._decide(number, _COMPLETE)
-        return [CompleteFrame(number, sim_time, eyepoint, sample_time, images)]
+        return [CompleteFrame(number, published.sim_time_s, eyepoint, published.control_sample_time_unix_s, images,
+                              published.publish_time_unix_s, published.run_id)]
 
     def _decide(self, number: int, outcome: str, detail: str = "") -> None:
         entry = self._open.pop(number, None)

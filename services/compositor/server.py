@@ -23,8 +23,10 @@ from services.rig.grpc_util import (
     set_not_serving,
 )
 
-from .gather import FrameGatherer, InvalidSubmission, percentiles
-from .stitch import FrameWriter
+from .gather import CompleteFrame, FrameGatherer, InvalidSubmission
+from .stitch import FrameRecorder, compose
+from .timing import TimingStats
+from .watch import Watchers, summary
 
 log = logging.getLogger("ig.compositor")
 SERVICE = "ig.v1.CompositorService"
@@ -32,33 +34,65 @@ SERVICE = "ig.v1.CompositorService"
 #: How often serve() finalises frames that have been open too long, seconds.
 _EXPIRE_EVERY_S = 0.5
 
+#: How often a watcher's stream wakes up to notice a cancelled client, seconds.
+_POLL_S = 0.5
+
 
 class Compositor:
-    """Gatherer + writer + the run's state, shared by the servicer and the host observer.
+    """Gatherer, composite, timing, recorder and watchers: the run's state, shared by the
+    servicer and the host observer.
+
+    A complete frame is stitched at once, on the thread that delivered its last image (a copy of
+    the pixels, under a millisecond at the default rig size): that is the composite, time-stamped
+    as a display output would show it. Everything after it (the timing figures, the recording,
+    the watchers) takes no more than a queue append on that thread.
 
     Args:
         channels: rig channel names in display order.
         out_dir: where frames/ and report.json go.
+        record_every: write a PNG of every N-th frame (0: never).
         exr_every: write an EXR every N frames (0: never).
         pending_timeout_s: a frame open this long is finalised as incomplete, seconds.
     """
 
-    def __init__(self, channels: Sequence[str], out_dir: Path, *, exr_every: int = 30,
+    def __init__(self, channels: Sequence[str], out_dir: Path, *, record_every: int = 1, exr_every: int = 30,
                  pending_timeout_s: float = 30.0) -> None:
         self.out_dir = Path(out_dir)
-        self.writer = FrameWriter(self.out_dir / "frames", exr_every=exr_every)
-        self.gatherer = FrameGatherer(channels, self.writer.put, pending_timeout_s=pending_timeout_s)
+        self.recorder = FrameRecorder(self.out_dir / "frames", record_every=record_every, exr_every=exr_every)
+        self.timing = TimingStats()
+        self.watchers = Watchers(channels)
+        self.gatherer = FrameGatherer(channels, self._on_complete, pending_timeout_s=pending_timeout_s)
         self.finished = threading.Event()
+        self.stitch_errors = 0
+        self._lock = threading.Lock()
         #: The host's final counters (GetHostStatus after its run), for the report.
         self.host_status: dict = {}
 
+    def _on_complete(self, frame: CompleteFrame) -> None:
+        try:
+            composite = compose(frame)
+        except ValueError as exc:
+            with self._lock:
+                self.stitch_errors += 1
+            log.error("frame %d not stitched: %s", frame.frame_number, exc)
+            return
+        self.timing.add(composite)
+        self.recorder.offer(composite)
+        self.watchers.publish(composite)
+
     def report(self) -> dict:
-        """The report document (report.json): gatherer counters, writer counters, host counters."""
+        """The report document (report.json): gatherer counters, timing, recorder counters, host
+        counters (docs/frame-lock.md, docs/latency.md)."""
         doc = self.gatherer.report()
-        written, errors, latencies = self.writer.snapshot()
-        doc["control_to_composite_latency"] = percentiles(latencies)
-        doc["frames_written"] = written
-        doc["write_errors"] = errors
+        doc.update(self.timing.report())
+        counts = self.recorder.snapshot()
+        with self._lock:
+            doc["stitch_errors"] = self.stitch_errors
+        doc["record_every"] = self.recorder.record_every
+        doc["exr_every"] = self.recorder.exr_every
+        doc["frames_written"] = counts.written
+        doc["frames_not_recorded"] = counts.not_recorded
+        doc["write_errors"] = counts.errors
         doc["frames_dir"] = str(self.out_dir / "frames")
         doc["host"] = self.host_status
         doc["finished"] = self.finished.is_set()
@@ -70,7 +104,8 @@ class Compositor:
         while self.gatherer.pending and time.monotonic() < deadline:
             time.sleep(0.05)
         self.gatherer.finalize_all()
-        self.writer.close()
+        self.recorder.close()
+        self.watchers.close()
         self.finished.set()
         doc = self.report()
         self.out_dir.mkdir(parents=True, exist_ok=True)
@@ -102,7 +137,23 @@ class CompositorServicer(compositor_pb2_grpc.CompositorServiceServicer):
         return compositor_pb2.GetCompositorReportResponse(
             report_json=json.dumps(doc), finished=doc["finished"], frames_published=doc["frames_published"],
             frames_complete=doc["frames_complete"], frames_incomplete=sum(doc["frames_incomplete"].values()),
-            frames_written=doc["frames_written"])
+            frames_written=doc["frames_written"], frames_not_recorded=doc["frames_not_recorded"])
+
+    def WatchComposites(self, request, context):
+        try:
+            watch = self.compositor.watchers.add(request.watcher or context.peer(), request.profile_channels)
+        except ValueError as exc:
+            context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+        log.info("watcher %s joined (row profiles of %s)", watch.name, list(watch.profile_channels) or "no channel")
+        try:
+            while context.is_active():
+                composite = watch.get(_POLL_S)
+                if composite is not None:
+                    yield summary(composite, watch)
+                elif watch.closed:
+                    return
+        finally:
+            self.compositor.watchers.remove(watch)
 
 
 def observe_host(compositor: Compositor, host_address: str, stop: threading.Event) -> bool:

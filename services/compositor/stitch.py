@@ -1,4 +1,4 @@
-"""Stitching complete frames side by side and writing them (PNG every frame, EXR every Nth)."""
+"""Stitching complete frames side by side, and recording the composites off the critical path."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +15,17 @@ import numpy as np
 from services.rig.image_io import write_image
 
 from .gather import CompleteFrame
+from .timing import Composite
 
 log = logging.getLogger("ig.compositor")
 
 
 def stitch(frame: CompleteFrame) -> np.ndarray:
-    """The channels' images side by side in rig order, (H, sum W, 3) float32 linear.
+    """The channels' images side by side in rig order, (H, sum W, 3) float16 linear.
+
+    One copy of the pixels, in the format they arrived in: widening to float32 here would take
+    four times as long (20 ms for three 1024 x 768 channels) on the way to the composite; the
+    recorder widens what it writes, on its own thread.
 
     Raises:
         ValueError: the channels differ in height (a rig of unequal rows cannot be stitched).
@@ -27,7 +33,27 @@ def stitch(frame: CompleteFrame) -> np.ndarray:
     heights = {img.rgb.shape[0] for img in frame.images}
     if len(heights) != 1:
         raise ValueError(f"frame {frame.frame_number}: channel heights {sorted(heights)} differ")
-    return np.concatenate([img.rgb.astype(np.float32) for img in frame.images], axis=1)
+    return np.concatenate([img.rgb for img in frame.images], axis=1)
+
+
+def compose(frame: CompleteFrame, *, clock: Callable[[], float] = time.time) -> Composite:
+    """The composite of a complete frame: stitched now, and time-stamped when it is done.
+
+    The channel images of the returned frame are views of the composite, so the buffers they
+    arrived in are freed and a composite waiting for the recorder or a watcher holds one copy
+    of the pixels.
+
+    Raises:
+        ValueError: as stitch.
+    """
+    rgb = stitch(frame)
+    done = clock()
+    images, x = [], 0
+    for img in frame.images:
+        width = img.rgb.shape[1]
+        images.append(replace(img, rgb=rgb[:, x:x + width]))
+        x += width
+    return Composite(replace(frame, images=tuple(images)), rgb, done)
 
 
 def frame_attributes(frame: CompleteFrame) -> dict[str, str | float | int]:
@@ -43,85 +69,108 @@ def frame_attributes(frame: CompleteFrame) -> dict[str, str | float | int]:
             "channels": ",".join(img.channel for img in frame.images)}
 
 
-class FrameWriter:
-    """Stitches complete frames and writes them on its own thread, so gathering never waits for
-    the disk.
+@dataclass
+class RecorderCounts:
+    """What the recorder has done.
 
-    Writes `frame_NNNNNN.png` (sRGB 8-bit) for every frame and `frame_NNNNNN.exr` (linear half
-    RGB with the frame attributes) for every frame number divisible by exr_every (0: never).
-
-    The queue is bounded: if the disk cannot keep up, submissions wait, which through the frame
-    lock slows the host instead of losing frames.
-
-    Args:
-        out_dir: directory of the frame files (created).
-        exr_every: EXR period in frames.
-        depth: frames waiting to be written before put blocks.
-        clock: wall clock, UNIX seconds, for the control-to-composite latency.
+    Attributes:
+        written: composites written (their PNG, or their EXR when no PNG was due).
+        errors: composites whose files could not be written.
+        not_recorded: composites due for recording that were left out because the writer was
+            behind (its queue was full).
     """
 
-    def __init__(self, out_dir: Path, *, exr_every: int = 30, depth: int = 8,
-                 clock: Callable[[], float] = time.time) -> None:
+    written: int = 0
+    errors: int = 0
+    not_recorded: int = 0
+
+
+class FrameRecorder:
+    """Records composites to files on its own thread; never makes the rig wait.
+
+    Writes `frame_NNNNNN.png` (sRGB 8-bit) for every frame number divisible by record_every and
+    `frame_NNNNNN.exr` (linear half RGB with the frame attributes) for every one divisible by
+    exr_every (0: never, for either).
+
+    Recording is a copy of what the rig shows, not part of showing it: encoding a 3072 x 768
+    PNG takes a few hundred milliseconds, longer than a frame. So offer() never waits: when the
+    writer is `depth` composites behind, a composite due for recording is left out and counted
+    (`not_recorded`) instead of holding the channel whose image completed it, and through the
+    frame lock the host. Choose record_every so that the writer keeps up (docs/latency.md).
+
+    Args:
+        out_dir: directory of the frame files (created when the first one is written).
+        record_every: PNG period in frame numbers.
+        exr_every: EXR period in frame numbers.
+        depth: composites waiting to be written before further ones are left out.
+    """
+
+    def __init__(self, out_dir: Path, *, record_every: int = 1, exr_every: int = 30, depth: int = 8) -> None:
+        for name, value in (("record_every", record_every), ("exr_every", exr_every), ("depth", depth)):
+            if value < 0:
+                raise ValueError(f"{name}: {value} must be >= 0")
         self.out_dir = Path(out_dir)
+        self.record_every = record_every
         self.exr_every = exr_every
-        self.clock = clock
-        self.written = 0
-        self.errors = 0
         self.last_path = ""
         self.last_error = ""
-        #: Seconds from each frame's control sample to its stitched image (composite wall time),
-        #: one per stitched frame.
-        self.latencies: list[float] = []
+        self._counts = RecorderCounts()
         self._lock = threading.Lock()
-        self._queue: queue.Queue[tuple[CompleteFrame, np.ndarray] | None] = queue.Queue(maxsize=depth)
-        self._thread = threading.Thread(target=self._run, name="frame-writer", daemon=True)
+        # A stitched composite holds its own pixels, so the queue keeps nothing the gatherer reuses.
+        self._queue: queue.Queue[tuple[Composite, bool, bool] | None] = queue.Queue(maxsize=max(depth, 1))
+        self._thread = threading.Thread(target=self._run, name="frame-recorder", daemon=True)
         self._thread.start()
 
-    def put(self, frame: CompleteFrame) -> None:
-        """Stitch a complete frame now and queue it for the disk (blocks while the queue is full).
+    def due(self, frame_number: int) -> tuple[bool, bool]:
+        """(PNG due, EXR due) for a frame number."""
+        return (self.record_every > 0 and frame_number % self.record_every == 0,
+                self.exr_every > 0 and frame_number % self.exr_every == 0)
 
-        Stitching here, on the caller's thread, is the composite: the latency is taken at this
-        moment, as a display output would show the frame. Encoding and writing the files is a
-        recording of it and happens on the writer thread.
+    def offer(self, composite: Composite) -> bool:
+        """Queue a composite for writing if it is due; never blocks.
+
+        Returns:
+            False if it was due but left out because the writer is behind (counted), else True.
         """
+        png, exr = self.due(composite.frame.frame_number)
+        if not (png or exr):
+            return True
         try:
-            rgb = stitch(frame)
-        except ValueError as exc:
-            self._count_error(frame, exc)
-            return
-        with self._lock:
-            self.latencies.append(self.clock() - frame.control_sample_time)
-        self._queue.put((frame, rgb))
+            self._queue.put_nowait((composite, png, exr))
+        except queue.Full:
+            with self._lock:
+                self._counts.not_recorded += 1
+            log.debug("frame %d not recorded: the writer is behind", composite.frame.frame_number)
+            return False
+        return True
 
     def close(self) -> None:
         """Write everything queued, then stop."""
         self._queue.put(None)
         self._thread.join()
 
-    def snapshot(self) -> tuple[int, int, list[float]]:
-        """Frames written, write errors, and a copy of the latencies."""
+    def snapshot(self) -> RecorderCounts:
+        """The counts so far."""
         with self._lock:
-            return self.written, self.errors, list(self.latencies)
-
-    def _count_error(self, frame: CompleteFrame, exc: Exception) -> None:
-        # A full disk or an unwritable directory must not stop the rig: counted, logged.
-        with self._lock:
-            self.errors += 1
-            self.last_error = f"frame {frame.frame_number}: {exc}"
-        log.error("frame %d not written: %s", frame.frame_number, exc)
+            return replace(self._counts)
 
     def _run(self) -> None:
         while (item := self._queue.get()) is not None:
-            frame, rgb = item
+            composite, png, exr = item
+            frame = composite.frame
             try:
-                self.out_dir.mkdir(parents=True, exist_ok=True)
                 attrs = frame_attributes(frame)
-                png = self.out_dir / f"frame_{frame.frame_number:06d}.png"
-                write_image(png, rgb, attributes=attrs)
-                if self.exr_every > 0 and frame.frame_number % self.exr_every == 0:
-                    write_image(png.with_suffix(".exr"), rgb, attributes=attrs)
+                path = self.out_dir / f"frame_{frame.frame_number:06d}.png"
+                if png:
+                    write_image(path, composite.rgb, attributes=attrs)
+                if exr:
+                    write_image(path.with_suffix(".exr"), composite.rgb, attributes=attrs)
                 with self._lock:
-                    self.written += 1
-                    self.last_path = str(png)
+                    self._counts.written += 1
+                    self.last_path = str(path if png else path.with_suffix(".exr"))
             except (OSError, ValueError) as exc:
-                self._count_error(frame, exc)
+                # A full disk or an unwritable directory must not stop the rig: counted, logged.
+                with self._lock:
+                    self._counts.errors += 1
+                    self.last_error = f"frame {frame.frame_number}: {exc}"
+                log.error("frame %d not written: %s", frame.frame_number, exc)

@@ -65,3 +65,34 @@ def test_a_failing_worker_stops_the_demo_at_once(tmp_path):
     assert "exited with code 2" in proc.stderr
     assert "sky.colour" in proc.stderr and "#zzzzzz" in proc.stderr  # the worker's own message
     assert processes_mentioning(str(out / "rig.toml")) == []
+
+
+def test_the_rate_is_what_the_rig_sustains_and_recording_never_holds_it_up(tmp_path):
+    """--rate auto (the default) measures the rig unthrottled first, then flies at that rate;
+    the PNGs due (--record-every auto) are written or counted as left out, never waited for."""
+    import json
+    import math
+    import re
+
+    from services.demo import record_every_for
+
+    out = tmp_path / "demo"
+    proc = subprocess.run([sys.executable, "-m", "services.cli", "demo", "--width", "48", "--height", "36",
+                           "--samples", "1", "--duration", "0.5", "--out", str(out)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "NUMBA_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "measuring the rate the rig sustains" in proc.stdout
+    match = re.search(r"(\d+) frames at ([\d.]+) Hz, PNG every (\d+) frame", proc.stdout)
+    assert match, proc.stdout
+    frames, rate, every = int(match[1]), float(match[2]), int(match[3])
+    assert 0 < rate <= 60.0 and frames == round(0.5 * rate) + 1
+    assert every == record_every_for(rate) == max(1, math.floor(rate))  # a PNG per simulated second
+    report = json.loads((out / "report.json").read_text())
+    assert report["frames_complete"] == report["frames_published"] == frames
+    assert report["record_every"] == every
+    due = len(range(0, frames, every))
+    pngs = list((out / "frames").glob("frame_*.png"))
+    assert len(pngs) + report["frames_not_recorded"] == due
+    assert all(int(p.stem.split("_")[1]) % every == 0 for p in pngs)
+    assert report["composite_rate_hz"] > 0

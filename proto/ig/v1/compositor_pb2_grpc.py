@@ -45,6 +45,11 @@ class CompositorServiceStub:
                 request_serializer=ig_dot_v1_dot_compositor__pb2.GetCompositorReportRequest.SerializeToString,
                 response_deserializer=ig_dot_v1_dot_compositor__pb2.GetCompositorReportResponse.FromString,
                 _registered_method=True)
+        self.WatchComposites = channel.unary_stream(
+                '/ig.v1.CompositorService/WatchComposites',
+                request_serializer=ig_dot_v1_dot_compositor__pb2.WatchCompositesRequest.SerializeToString,
+                response_deserializer=ig_dot_v1_dot_compositor__pb2.WatchCompositesResponse.FromString,
+                _registered_method=True)
 
 
 class CompositorServiceServicer:
@@ -65,6 +70,15 @@ class CompositorServiceServicer:
         context.set_details('Method not implemented!')
         raise NotImplementedError('Method not implemented!')
 
+    def WatchComposites(self, request, context):
+        """Streams a summary of every composite from now on: its frame, time stamps along the whole
+        path and, for the channels asked for, the luminance of each row (enough to see the
+        horizon move without the pixels; `ig latency` reads it). Ends when the run is over.
+        """
+        context.set_code(grpc.StatusCode.UNIMPLEMENTED)
+        context.set_details('Method not implemented!')
+        raise NotImplementedError('Method not implemented!')
+
 
 def add_CompositorServiceServicer_to_server(servicer, server):
     rpc_method_handlers = {
@@ -77,6 +91,11 @@ def add_CompositorServiceServicer_to_server(servicer, server):
                     servicer.GetCompositorReport,
                     request_deserializer=ig_dot_v1_dot_compositor__pb2.GetCompositorReportRequest.FromString,
                     response_serializer=ig_dot_v1_dot_compositor__pb2.GetCompositorReportResponse.SerializeToString,
+            ),
+            'WatchComposites': grpc.unary_stream_rpc_method_handler(
+                    servicer.WatchComposites,
+                    request_deserializer=ig_dot_v1_dot_compositor__pb2.WatchCompositesRequest.FromString,
+                    response_serializer=ig_dot_v1_dot_compositor__pb2.WatchCompositesResponse.SerializeToString,
             ),
     }
     generic_handler = grpc.method_handlers_generic_handler(
@@ -134,6 +153,33 @@ class CompositorService:
             '/ig.v1.CompositorService/GetCompositorReport',
             ig_dot_v1_dot_compositor__pb2.GetCompositorReportRequest.SerializeToString,
             ig_dot_v1_dot_compositor__pb2.GetCompositorReportResponse.FromString,
+            options,
+            channel_credentials,
+            insecure,
+            call_credentials,
+            compression,
+            wait_for_ready,
+            timeout,
+            metadata,
+            _registered_method=True)
+
+    @staticmethod
+    def WatchComposites(request,
+            target,
+            options=(),
+            channel_credentials=None,
+            call_credentials=None,
+            insecure=False,
+            compression=None,
+            wait_for_ready=None,
+            timeout=None,
+            metadata=None):
+        return grpc.experimental.unary_stream(
+            request,
+            target,
+            '/ig.v1.CompositorService/WatchComposites',
+            ig_dot_v1_dot_compositor__pb2.WatchCompositesRequest.SerializeToString,
+            ig_dot_v1_dot_compositor__pb2.WatchCompositesResponse.FromString,
             options,
             channel_credentials,
             insecure,

@@ -63,3 +63,58 @@ def test_submit_report_health_and_invalid_argument(served, tmp_path):
     pixels, attrs = read_image(tmp_path / "frames" / "frame_000000.exr")
     assert pixels.shape == (2, 6, 3) and attrs["channels"] == "a,b"
     assert json.loads((tmp_path / "report.json").read_text())["frames_complete"] == 1
+
+
+def wait_until(predicate, timeout_s=10.0):
+    import time
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.01)
+
+
+def stamped(n, ch, base, pixels):
+    """A submission of frame n whose worker stamps start at base (UNIX seconds)."""
+    return req(n, ch, pixels=pixels.tobytes(), run_id="r", control_sample_time_unix_s=base,
+               frame_received_unix_s=base + 0.002, render_start_unix_s=base + 0.003,
+               render_end_unix_s=base + 0.020, submit_unix_s=base + 0.021)
+
+
+def test_watch_composites_streams_time_stamps_and_row_profiles(served):
+    comp, address = served
+    rows = np.zeros((2, 3, 3), "<f2")
+    rows[1] = 1.0  # the second row white: luminance 0, then 1
+    with make_channel(address) as ch:
+        stub = compositor_pb2_grpc.CompositorServiceStub(ch)
+        with pytest.raises(grpc.RpcError) as err:
+            next(stub.WatchComposites(compositor_pb2.WatchCompositesRequest(profile_channels=["zz"]), timeout=5))
+        assert err.value.code() == grpc.StatusCode.INVALID_ARGUMENT
+        assert "profile_channels: 'zz' is not a channel of the rig (a, b)" in err.value.details()
+        stream = stub.WatchComposites(compositor_pb2.WatchCompositesRequest(watcher="test", profile_channels=["b"]),
+                                      timeout=30)
+        wait_until(lambda: len(comp.watchers) == 1)
+        base = 1_700_000_000.0
+        comp.gatherer.on_published(frame_pb2.Frame(
+            frame_number=0, run_id="r", sim_time_s=0.5, eyepoint=frame_pb2.Eyepoint(x=1.0, y=2.0, z=3.0),
+            control_sample_time_unix_s=base, publish_time_unix_s=base + 0.001))
+        stub.SubmitChannelImage(stamped(0, "a", base, np.zeros((2, 3, 3), "<f2")), timeout=5)
+        stub.SubmitChannelImage(stamped(0, "b", base, rows), timeout=5)
+        first = next(stream)
+        assert (first.frame_number, first.run_id, first.sim_time_s) == (0, "r", 0.5)
+        assert (first.eyepoint.x, first.eyepoint.z) == (1.0, 3.0)
+        assert first.control_sample_time_unix_s == base and first.publish_time_unix_s == base + 0.001
+        assert [c.channel_name for c in first.channels] == ["a", "b"]
+        b = first.channels[1]
+        assert (b.frame_received_unix_s, b.render_start_unix_s, b.render_end_unix_s, b.submit_unix_s) == (
+            base + 0.002, base + 0.003, base + 0.020, base + 0.021)
+        assert b.submit_unix_s <= b.compositor_receive_unix_s <= first.composite_time_unix_s
+        assert [p.channel_name for p in first.profiles] == ["b"]
+        np.testing.assert_allclose(first.profiles[0].luminance, [0.0, 1.0], atol=1e-6)
+        assert first.watcher_drops == 0
+        comp.finish(grace_s=0.0)  # the run is over: the stream ends
+        assert list(stream) == []
+    report = comp.report()
+    assert report["latency_chain"]["render"]["count"] == 1
+    assert report["latency_chain"]["render"]["p50_ms"] == pytest.approx(17.0)
+    assert report["control_to_composite_latency"]["count"] == 1
+    assert report["record_every"] == 1 and report["frames_not_recorded"] == 0 and report["frames_written"] == 1

@@ -1,0 +1,109 @@
+"""The composite and where its time went: the hops from the host's control sample to the
+stitched frame in memory (docs/latency.md).
+
+A frame's way through the rig is a chain of wall-clock time stamps: the host samples the
+controls and publishes the frame; each worker receives it, renders it and submits its image;
+the compositor receives the images and, once it has every channel's, stitches the composite.
+The composite waits for the channel whose image came last, so the chain is taken along that
+channel (the critical one): its hops then add up exactly to control sample -> composite.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import Counter
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .gather import ChannelImage, CompleteFrame, percentiles
+
+#: The hops of a frame's chain, in order: (report key, what it spans). Their sum is the
+#: control-to-composite latency.
+HOPS: tuple[tuple[str, str], ...] = (
+    ("host_sample_to_publish", "host: control sample -> frame published (flight model, eyepoint)"),
+    ("publish_to_worker_receive", "host -> worker: frame stream"),
+    ("worker_receive_to_render_start", "worker: mailbox -> render start"),
+    ("render", "worker: render"),
+    ("render_end_to_compositor_receive", "worker -> compositor: encode, send, receive"),
+    ("compositor_receive_to_composite", "compositor: last image received -> composite stitched"),
+)
+
+
+@dataclass(frozen=True)
+class Composite:
+    """A complete frame stitched in memory: what a display output would show.
+
+    Attributes:
+        frame: the complete frame (its images, eyepoint, host time stamps).
+        rgb: (H, sum of widths, 3) float16 linear RGB, the channels side by side in rig order.
+        time: UNIX seconds when the stitch was done (the composite time latency is measured to).
+    """
+
+    frame: CompleteFrame
+    rgb: np.ndarray
+    time: float
+
+
+def critical_image(frame: CompleteFrame) -> ChannelImage:
+    """The image the composite waited for: the one the compositor received last."""
+    return max(frame.images, key=lambda img: img.timing.compositor_receive)
+
+
+def hop_seconds(stamps: Sequence[float]) -> dict[str, float] | None:
+    """Seconds spent in each hop of HOPS from the chain's seven time stamps in order (control
+    sample, publish, worker receive, render start, render end, compositor receive, composite,
+    UNIX seconds); None when one is missing (0: a worker that does not report them)."""
+    if len(stamps) != len(HOPS) + 1:
+        raise ValueError(f"stamps: {len(stamps)} time stamps, expected {len(HOPS) + 1}")
+    if not all(stamps):
+        return None
+    return {key: b - a for (key, _), a, b in zip(HOPS, stamps[:-1], stamps[1:], strict=True)}
+
+
+def chain(composite: Composite) -> dict[str, float] | None:
+    """hop_seconds of a composite, along its critical channel."""
+    frame = composite.frame
+    t = critical_image(frame).timing
+    return hop_seconds((frame.control_sample_time, frame.publish_time, t.frame_received, t.render_start,
+                        t.render_end, t.compositor_receive, composite.time))
+
+
+class TimingStats:
+    """Per-frame latency, hops and composite intervals of a run, summarised for the report."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.latencies: list[float] = []
+        self.hops: dict[str, list[float]] = {key: [] for key, _ in HOPS}
+        self.critical: Counter[str] = Counter()
+        self.intervals: list[float] = []
+        self._last_time: float | None = None
+
+    def add(self, composite: Composite) -> None:
+        """Account for one composite (composites arrive in frame order)."""
+        hops = chain(composite)
+        with self._lock:
+            self.latencies.append(composite.time - composite.frame.control_sample_time)
+            if self._last_time is not None:
+                self.intervals.append(composite.time - self._last_time)
+            self._last_time = composite.time
+            if hops is not None:
+                for key, seconds in hops.items():
+                    self.hops[key].append(seconds)
+                self.critical[critical_image(composite.frame).channel] += 1
+
+    def report(self) -> dict:
+        """The report's timing keys (docs/frame-lock.md, docs/latency.md)."""
+        with self._lock:
+            median = float(np.median(self.intervals)) if self.intervals else 0.0
+            return {
+                "control_to_composite_latency": percentiles(self.latencies),
+                "latency_chain": {key: percentiles(v) for key, v in self.hops.items()},
+                "critical_channel": dict(sorted(self.critical.items())),
+                "composite_interval": percentiles(self.intervals),
+                # The rate the rig sustained: the median interval, so that the first frames of a
+                # run (pages of terrain loading) do not count for the whole run.
+                "composite_rate_hz": round(1.0 / median, 3) if median > 0 else None,
+            }
