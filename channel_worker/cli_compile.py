@@ -2,18 +2,44 @@
 
 The kernels are cached per version of the pipeline's sources (channel_worker/pipeline/
 kernel_cache.py), so every worker started afterwards loads them in a second or two instead of
-compiling them itself; `ig demo` runs this before it starts the rig.
+compiling them itself; `ig demo` runs this before it starts the rig. On a cold cache the kernels
+compile in --jobs processes at once (channel_worker/compile_jobs.py), and the progress shows
+while they do: which group compiles which kernel, seconds so far, groups done. A request
+compiled before (same sources, scene and options) only loads them, in about a second.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import queue
 import sys
+import threading
 import time
+from typing import TextIO
 
-from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_OK, error, load_rig_or_report
-from services.rig.frame import ChannelSpec, Eyepoint
+from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, load_rig_or_report
+from services.rig.frame import ChannelSpec
 from services.rig.options import add_render_arguments, from_arguments
+
+# Light: the pipeline (numba) is imported only when a compile runs.
+from .compile_jobs import (
+    CHECK,
+    GROUPS,
+    CompileError,
+    CompileRequest,
+    Progress,
+    compile_kernels,
+    compiled_before,
+    mark_compiled,
+    plan,
+)
+
+#: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
+EXIT_INTERRUPTED = 130
+
+#: Seconds between status lines when the output is not a terminal (a log, `ig demo`).
+LOG_STATUS_EVERY_S = 10.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -24,14 +50,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rig", default=None,
                         help="rig file whose [render] table the workers read (default: the bundled rig)")
     add_render_arguments(parser, renderer=True, with_range=True)
+    parser.add_argument("--jobs", type=_jobs, default=_cores(),
+                        help="processes compiling at once on a cold cache (default: this machine's "
+                             f"cores, {_cores()}); 1 compiles in this process, one kernel at a time")
     parser.add_argument("--prune", action="store_true",
                         help="also remove the cached kernels of other versions of the sources")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Render one tiny frame with the workers' options; 0 ok, 2 bad input."""
+    """Render one tiny frame with the workers' options; 0 ok, 1 a compile failed, 2 bad input,
+    130 interrupted."""
     from .pipeline.kernel_cache import kernel_cache_dir, prune
-    from .pipeline.render import render_frame
     from .pipeline.scene.load import SceneError, bundled_scene_path, load_scene
 
     rig = load_rig_or_report(args.rig, "compile")
@@ -42,20 +71,175 @@ def run(args: argparse.Namespace) -> int:
         options = from_arguments(args, base=rig.render)
         if args.with_range is None:
             options = options.replace(with_range=False)
-        database = load_scene(args.scene or bundled_scene_path())
+        scene = args.scene or str(bundled_scene_path())
+        database = load_scene(scene)
     except (SceneError, ValueError) as exc:
         error("compile", exc)
         return EXIT_BAD_INPUT
-    cache = kernel_cache_dir()
-    print(f"ig compile: compiling the render kernels into {cache} (minutes the first time on a "
-          f"new version of the sources, seconds once cached) ...", end="", flush=True)
-    t0 = time.perf_counter()
     first = rig.channels[0].spec
-    tiny = ChannelSpec("compile", 8, 6, first.left_deg, first.right_deg, first.bottom_deg,
-                       first.top_deg)
-    render_frame(database, tiny, Eyepoint.of(0.0, 0.0, 10.0, 0.0, 0.0, 0.0), options)
-    print(f" done in {time.perf_counter() - t0:.1f} s", flush=True)
+    # The workers' warm-up frame (channel_worker/worker.py): any frame size compiles the same
+    # kernels, and a tiny one renders in no time once they are compiled.
+    tiny = ChannelSpec("compile", 8, 6, first.left_deg, first.right_deg, first.bottom_deg, first.top_deg)
+    request = CompileRequest(scene, options, tiny)
+    cache = kernel_cache_dir()
+    if compiled_before(request):
+        groups: list[str] = []
+        print(f"ig compile: loading the render kernels from {cache} (compiled there before for this scene "
+              f"and these options)", flush=True)
+    else:
+        groups = plan(database, options, args.jobs)
+        how = (f"{len(groups)} groups in processes of their own ({', '.join(groups)}), then one frame as a "
+               f"worker renders it" if groups else "one frame as a worker renders it")
+        print(f"ig compile: compiling the render kernels into {cache}: {how} (a minute or so the first time "
+              f"on a new version of the sources, a second or two once cached)", flush=True)
+    t0 = time.perf_counter()
+    display = ProgressDisplay(sys.stdout, [*groups, CHECK])
+    try:
+        with display:
+            compiled = compile_kernels(request, database, groups, display.put)
+    except CompileError as exc:
+        error("compile", exc)
+        return EXIT_FAILED
+    except ValueError as exc:  # options the renderer refuses for this scene (render_frame)
+        error("compile", exc)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("ig compile: interrupted; the kernels compiled so far stay cached", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    total = display.kernels_compiled()
+    mark_compiled(request, total)
+    what = f"{total} kernels compiled" if total else "every kernel was in the cache"
+    print(f"ig compile: done in {time.perf_counter() - t0:.1f} s ({what})", flush=True)
+    if groups and compiled:
+        # Not an error (they are cached now), but a sign that compile_jobs.run_group no longer
+        # renders what a worker does: the groups left these to one process, one at a time.
+        print(f"ig compile: note: the check frame compiled {len(compiled)} kernels that no group did "
+              f"({', '.join(_short(k) for k in compiled)}): channel_worker/compile_jobs.py's groups "
+              f"no longer cover what a worker renders", file=sys.stderr)
     if args.prune:
         for path in prune(cache):
             print(f"ig compile: removed {path}", file=sys.stderr)
     return EXIT_OK
+
+
+class ProgressDisplay:
+    """A compile's progress on a stream: a line for each finished group and, while groups run,
+    a status line (seconds so far, groups done of all, the kernel each running group compiles):
+    redrawn every second on a terminal, printed every LOG_STATUS_EVERY_S seconds elsewhere.
+
+    put() takes compile_jobs.Progress events from any thread; the display's own thread prints,
+    so the status keeps counting while this process compiles (the check frame).
+    """
+
+    def __init__(self, stream: TextIO, groups: list[str]) -> None:
+        self.stream = stream
+        self.groups = groups
+        self.tty = stream.isatty()
+        self._events: queue.Queue[Progress | None] = queue.Queue()
+        self._thread = threading.Thread(target=self._run, name="ig-compile-progress", daemon=True)
+        self._t0 = time.monotonic()
+        self._running: dict[str, list[str]] = {}  # group -> the kernels it is compiling, outermost first
+        self._compiled = dict.fromkeys(groups, 0)
+        self._done = 0
+        self._status_shown = False
+
+    def put(self, event: Progress) -> None:
+        """Show event (thread-safe)."""
+        self._events.put(event)
+
+    def kernels_compiled(self) -> int:
+        """Kernels compiled so far, every group together (read once the display has stopped)."""
+        return sum(self._compiled.values())
+
+    def __enter__(self) -> ProgressDisplay:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._events.put(None)
+        self._thread.join()
+
+    def _run(self) -> None:
+        every = 1.0 if self.tty else LOG_STATUS_EVERY_S
+        next_status = time.monotonic() + every
+        while True:
+            try:
+                event = self._events.get(timeout=max(0.0, next_status - time.monotonic()))
+            except queue.Empty:
+                self._status()
+                next_status = time.monotonic() + every
+                continue
+            if event is None:
+                self._clear_status()
+                return
+            self._show(event)
+
+    def _show(self, ev: Progress) -> None:
+        if ev.kind == "group-start":
+            self._running[ev.group] = []
+        elif ev.kind == "kernel-start":
+            self._running.setdefault(ev.group, []).append(_short(ev.name))
+        elif ev.kind == "kernel-end":
+            stack = self._running.get(ev.group)
+            if stack:
+                stack.pop()
+            self._compiled[ev.group] = self._compiled.get(ev.group, 0) + 1
+        elif ev.kind == "group-end":
+            self._running.pop(ev.group, None)
+            self._done += 1
+            n = ev.kernels
+            what = (f"{n} kernel{'s' if n != 1 else ''} compiled in {ev.seconds:.1f} s" if n
+                    else f"every kernel loaded from the cache, {ev.seconds:.1f} s")
+            self._line(f"  [{self._done}/{len(self.groups)}] {_label(ev.group)}: {what}")
+
+    def _status(self) -> None:
+        if not self._running:
+            return
+        now = ", ".join(f"{g}: {stack[-1] if stack else 'loading'}" for g, stack in self._running.items())
+        text = f"  {time.monotonic() - self._t0:4.0f} s  [{self._done}/{len(self.groups)} done]  {now}"
+        if self.tty:
+            self.stream.write(f"\r{text}\x1b[K")  # \x1b[K: erase what a longer line left
+            self._status_shown = True
+        else:
+            self.stream.write(f"ig compile:{text}\n")
+        self.stream.flush()
+
+    def _line(self, text: str) -> None:
+        self._clear_status()
+        self.stream.write(f"ig compile:{text}\n")
+        self.stream.flush()
+
+    def _clear_status(self) -> None:
+        if self._status_shown:
+            self.stream.write("\r\x1b[K")
+            self.stream.flush()
+            self._status_shown = False
+
+
+def _label(group: str) -> str:
+    """How the display names a step: "polygons (geometry, ...)", the check frame."""
+    return f"{group} ({GROUPS[group]})" if group in GROUPS else "a frame as a worker renders it"
+
+
+def _short(name: str) -> str:
+    """A kernel's name without its package: "_resolve_kernels.box_subarea"."""
+    module, _, qualname = name.rpartition(".")
+    return f"{module.rpartition('.')[2]}.{qualname}" if module else name
+
+
+def _cores() -> int:
+    """The cores this process may run on (its CPU affinity, where the OS tells it)."""
+    if hasattr(os, "sched_getaffinity"):
+        return max(1, len(os.sched_getaffinity(0)))
+    return os.cpu_count() or 1
+
+
+def _jobs(text: str) -> int:
+    """argparse type: a whole number of processes >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number >= 1")
+    return value

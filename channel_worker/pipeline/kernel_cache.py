@@ -15,6 +15,15 @@ other sources.
 The directory is ``$IG_CACHE_DIR/numba/<key>`` (IG_CACHE_DIR defaults to ~/.cache/ig-rig, where
 the bundled terrain is cached too). It is chosen by setting NUMBA_CACHE_DIR when the pipeline
 package is imported, before any kernel is defined (numba reads it when a kernel is decorated).
+
+Several processes may write the one directory at once (`ig compile`'s compile processes,
+workers started on a cold cache), and numba saves a kernel without a lock: it reads the
+kernel's index, takes the first data file name the index does not use, and writes index and
+data back. Two processes saving two specialisations of one kernel at once can both take the
+same name, and the index then points one specialisation at the other's machine code.
+serialise_cache_writes() makes a process's saves hold a lock; `ig compile` calls it in each of
+its processes (it is not called on import: importing the pipeline package does not load numba,
+which tools such as `ig terrain info` never need).
 """
 
 from __future__ import annotations
@@ -25,6 +34,10 @@ import shutil
 import sys
 from importlib import metadata
 from pathlib import Path
+from typing import Any
+
+#: The lock file numba's saves take, in each directory of kernels (serialise_cache_writes).
+LOCK_NAME = ".ig-save.lock"
 
 #: The package whose sources key the cache.
 _PIPELINE = Path(__file__).resolve().parent
@@ -66,6 +79,35 @@ def use_kernel_cache() -> Path:
         from numba.core import config
         config.reload_config()
     return path
+
+
+def serialise_cache_writes() -> None:
+    """Make every numba cache save of this process hold an exclusive lock (module doc).
+
+    An advisory flock on LOCK_NAME in the directory of the kernel's index, held while numba
+    reads the index, picks a data file name and writes both; loads need no lock (numba
+    replaces each file atomically). Every process that may compile while another writes the
+    same cache should call it before it compiles. Without flock (not POSIX) saves stay
+    unlocked.
+    """
+    try:
+        import fcntl
+    except ImportError:
+        return
+    from numba.core import caching
+
+    cache_file = caching.IndexDataCacheFile
+    if getattr(cache_file.save, "ig_locked", False):
+        return  # wrapped by an earlier call
+    unlocked_save = cache_file.save
+
+    def save(self: Any, key: Any, data: Any) -> None:
+        with open(os.path.join(self._cache_path, LOCK_NAME), "a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+            unlocked_save(self, key, data)
+
+    save.ig_locked = True  # type: ignore[attr-defined]
+    cache_file.save = save  # type: ignore[method-assign]
 
 
 def prune(keep: Path) -> list[Path]:

@@ -348,7 +348,9 @@ def scan_kernel(pages, grid, limits, air, out_pre, out_visits):
         theta_lo = grid.theta0 + start * grid.dtheta
         st[_TMAX] = theta_lo
         out = out_pre[j]
-        out_visits[j] = _scan_column(j, st, pages, grid, limits, theta_lo, air, out)
+        # np.int64: numba types a prange index unsigned, and the column function would be
+        # compiled a second time for it.
+        out_visits[j] = _scan_column(np.int64(j), st, pages, grid, limits, theta_lo, air, out)
         # The row the scan stopped in holds what covered it so far (a silhouette).
         if int(st[_ROW]) < nrows and st[_AW] > 0.0:
             _finish_row(out, st, grid, air)
@@ -554,13 +556,11 @@ def _scan_column(j, st, pages, grid, limits, theta_lo, air, out):
                 hi = top + pages.pat_top[k, band]
                 if hi > r * tan_max:
                     _wall(out, st, grid, air, colours, r, lo, hi,
-                          (pages.pat_rgb[k, band, 0], pages.pat_rgb[k, band, 1],
-                           pages.pat_rgb[k, band, 2]))
+                          _rgb64(pages.pat_rgb[k, band]))
                     tan_max = st[_TANMAX]
                 lo = hi
             last = pages.pat_bands[k] - 1
-            c_top = (pages.pat_rgb[k, last, 0], pages.pat_rgb[k, last, 1],
-                     pages.pat_rgb[k, last, 2])
+            c_top = _rgb64(pages.pat_rgb[k, last])
             if lo > r_next * tan_max:
                 _surface(out, st, grid, air, colours, (r, lo, r_next, lo), math.nan,
                          _Paint(-1, 0, 0, 0.0, 0.0, 0.0, 0.0, c_top), c_top, c_top)
@@ -603,6 +603,13 @@ def _scan_column(j, st, pages, grid, limits, theta_lo, air, out):
             if iy < 0 or iy >= level_ny[level]:
                 break
     return visits
+
+
+@njit(cache=True, inline="always")
+def _rgb64(rgb):
+    """A float32 colour as the float64 tuple every other colour of the scan is: one
+    compiled version of the functions it reaches, not one per float width."""
+    return (np.float64(rgb[0]), np.float64(rgb[1]), np.float64(rgb[2]))
 
 
 @borrowing
