@@ -36,6 +36,8 @@ bench: $(STAMP)
 	$(PY) bench/bench_visibility.py
 	$(PY) bench/bench_terrain.py
 	$(PY) bench/bench_fog.py
+	$(PY) bench/bench_frame.py
+	$(VENV)/bin/ig latency --out bench/results/latency.json
 
 # Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.
 proto: $(STAMP)

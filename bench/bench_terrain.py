@@ -6,6 +6,7 @@ level bias and the pre-image resolution (bench/README.md).
     python bench/bench_terrain.py --repeats 9     # steadier medians on a busy machine
     python bench/bench_terrain.py --quick         # smoke run (1 minute); not a measurement
     python bench/bench_terrain.py --replot        # redraw terrain.png from terrain.json
+    python bench/bench_terrain.py --peer-only     # only the Voxel Space peer (2-3 minutes)
 
 1. Sweep: a 4096 x 4096-voxel, 3 m procedural database (bench/scenes/terrain.py, cached after
    its first build) seen from 50 to 4000 m above the ground under the eye at pitches -90 to 0
@@ -26,6 +27,12 @@ now time the "background" stage and render_background.
    1.5, 2): stage time at 1280 x 1024 against the error of that same render, on every 4th
    pixel each way, against the exact ray-cast reference
    (channel_worker/testing/terrain_reference.py), on four views.
+6. A lean Voxel Space peer (bench/voxel_space.py: Comanche's algorithm, one sample per pixel)
+   beside our stage, from the same eyes, same frustum, same database: a 3-degree approach on the
+   fractal and the Jacksboro terrain and the sweep's views of pitch -20 to 0 degrees; our
+   stage's and whole frame's time (1280 x 1024, rgss4) against the peer's (1 sample), and the
+   range error of both against the exact reference. `--peer-only` runs this section alone and
+   updates its key in terrain.json.
 
 Everything runs pinned to one CPU with numba on one thread, after a warm-up (numba compiles on
 the first call). Writes bench/results/terrain.json (the record) and bench/results/terrain.png
@@ -169,6 +176,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = bench_parser(__doc__, "terrain", "default 5; the bias grid 3; --quick 1",
                           "fewer cells, settings and views, a 160 x 128 error raster, one "
                           "repeat: checks the bench runs; not a measurement")
+    parser.add_argument("--peer-only", action="store_true",
+                        help="run only the Voxel Space peer comparison and update its key "
+                             "(voxel_space_peer) in terrain.json, leaving the rest as it is")
     args = parser.parse_args(argv)
     if replot(args, "terrain", print_report, plot):
         return 0
@@ -187,6 +197,8 @@ def main(argv: list[str] | None = None) -> int:
     from bench_render import machine
 
     progress = Progress()
+    if args.peer_only:
+        return peer_only(args.out, quick, repeats, cpu, progress)
     record: dict[str, Any] = {
         "benchmark": "background stage's voxel terrain (JP H07-76990), one core: time and voxels "
                      "against pitch and altitude, options, speed against error for level bias and "
@@ -210,6 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     no_terrain(record, repeats, progress)
     level_window(record, progress)
     bias_grid(record, quick, bias_repeats, progress)
+    voxel_space_peer(record, quick, repeats, progress)
     record["seconds"] = progress.seconds
     finish(record, args.out, "terrain", print_report, plot)
     return 0
@@ -718,6 +731,259 @@ def subset_error(bg, bgc, case: dict) -> dict[str, float]:
             "range_p95": float(np.percentile(rel, 95)) if rel.size else 0.0}
 
 
+# --- 6. a lean Voxel Space peer ---------------------------------------------------------------
+
+#: The approach of the peer comparison: eyepoints on a GLIDE_DEG glide path at the given
+#: horizontal distances from its aim point (on the ground), heading along it, pitched down
+#: GLIDE_DEG, roll 0. Jacksboro: runway 36 of the bundled airfield (threshold at y = -1000 m,
+#: the runway at z = 0), aiming 300 m past the threshold; the hills under the path clear it by
+#: 6.5 m at the least (2 km out, a path of 105 m over a 94 m crest: a real approach over
+#: Tennessee hills). Fractal: aim point and heading chosen once by a search of aim points
+#: every 150 m and eight headings, for the lowest aim whose path clears the terrain by at
+#: least 40 m over its last 8 km with at least 5 km of database ahead: this one clears it by
+#: 65 m, with 7.4 km ahead.
+GLIDE_DEG = 3.0
+APPROACHES: tuple[dict[str, Any], ...] = (
+    {"terrain": "fractal", "aim_xy_m": (-944.0, -344.0), "heading_deg": 315.0,
+     "distances_m": (8000.0, 4000.0, 2000.0, 1000.0, 500.0)},
+    {"terrain": "jacksboro", "aim_xy_m": (0.0, -700.0), "heading_deg": 0.0,
+     "distances_m": (12000.0, 6000.0, 3000.0, 1500.0, 750.0)},
+)
+#: The sweep's views the peer can draw at all: a horizon shift is no camera pitch of -30 degrees
+#: or steeper (straight down there is no horizon to shift).
+PEER_SWEEP_PITCHES_DEG = (-20, -10, -5, 0)
+#: Range error on every PEER_STRIDE-th pixel each way (approach views: 320 x 256 reference rays)
+#: and every PEER_SWEEP_STRIDE-th on the sweep's views (160 x 128).
+PEER_STRIDE, PEER_SWEEP_STRIDE = 4, 8
+PEER_QUICK: dict[str, Any] = {"distances": 2, "sweep": ((200, -10),), "stride": 16}
+#: The issue's target: our terrain stage at 4 samples at most this many times the peer's time
+#: at one sample.
+PEER_TARGET_RATIO = 1.0
+
+
+def glide_eyepoints(terrain, approach: dict[str, Any], distances) -> list[tuple[float, Any]]:
+    """(distance m, Eyepoint) on the approach's glide path, GLIDE_DEG above the aim point."""
+    from bench.scenes.terrain import ground_z
+    from services.rig.frame import Eyepoint
+
+    ax, ay = approach["aim_xy_m"]
+    h = math.radians(approach["heading_deg"])
+    aim_z = ground_z(terrain, ax, ay)
+    out = []
+    for d in distances:
+        x, y = ax - d * math.sin(h), ay - d * math.cos(h)
+        z = aim_z + d * math.tan(math.radians(GLIDE_DEG))
+        below = ground_z(terrain, x, y)
+        if z <= below:
+            raise RuntimeError(f"{approach['terrain']} approach: the eye {d:g} m out ({z:.1f} m) "
+                               f"is not above the ground under it ({below:.1f} m)")
+        out.append((d, Eyepoint(position=np.array([x, y, z]), heading_deg=approach["heading_deg"],
+                                pitch_deg=-GLIDE_DEG, roll_deg=0.0)))
+    return out
+
+
+def range_error(range_m: np.ndarray, terrain: np.ndarray, ref_range: np.ndarray,
+                ref_hit: np.ndarray) -> dict[str, float]:
+    """Relative range error where both the renderer (its terrain mask) and the reference see
+    terrain (median, 95th percentile), and the share of pixels where they disagree on it."""
+    r = range_m.astype(np.float64)
+    seen = ref_hit & terrain
+    rel = np.abs(r[seen] - ref_range[seen]) / ref_range[seen]  # guard: a hit's range is > 0
+    return {"range_median": float(np.median(rel)) if rel.size else 0.0,
+            "range_p95": float(np.percentile(rel, 95)) if rel.size else 0.0,
+            "coverage_disagree": float((terrain != ref_hit).mean())}
+
+
+def peer_case(terrain, database, maps, eye, repeats: int, stride: int) -> dict[str, Any]:
+    """Our frame and the peer's from one eye, timed alternately in every repetition (a busy
+    moment of the machine falls on both alike), and the range error of both."""
+    from bench.voxel_space import render_voxel_space
+    from channel_worker.pipeline.geometry.view import make_view
+    from channel_worker.pipeline.render import render_frame
+    from services.rig.report import FrameReport
+
+    channel = sweep_channel()
+    view = make_view(channel, eye)
+    options = RenderOptions(samples=SAMPLES, with_range=False)
+    out = np.empty((channel.height, channel.width, 3), np.float32)
+    report = FrameReport()
+    peer = None
+    stage, frame, peer_walls = [], [], []
+    for k in range(repeats + 1):  # the first is the warm-up: numba compiles, pages are read
+        report.clear()
+        t0 = time.perf_counter()
+        render_frame(database, channel, eye, options, report=report, out=out)
+        t1 = time.perf_counter()
+        peer = render_voxel_space(maps, view, sky=database.sky_colour,
+                                  earth=database.earth_colour, out=peer)
+        t2 = time.perf_counter()
+        if k:
+            stage.append(report.stage_seconds["background"])
+            frame.append(t1 - t0)
+            peer_walls.append(t2 - t1)
+    assert peer is not None  # repeats + 1 >= 1 frames
+    t0 = time.perf_counter()
+    centre = np.array([[0.5, 0.5]])
+    ref = reference_subset(terrain, view, centre, stride)
+    ref_seconds = time.perf_counter() - t0
+    ours_c, _ = background_alone(database, view, centre)  # one centre sample: its range
+    pick = np.ix_(ref["ys"], ref["xs"])
+    ref_range, ref_hit = ref["range"][..., 0], ref["hit"][..., 0]
+    terrain_ms, peer_ms = median_ms(stage), median_ms(peer_walls)
+    return {"terrain_ms": terrain_ms, "frame_ms": median_ms(frame), "peer_ms": peer_ms,
+            "ratio_terrain_over_peer": terrain_ms / peer_ms,
+            "ratio_frame_over_peer": median_ms(frame) / peer_ms,
+            "terrain_ms_all": [1e3 * w for w in stage], "frame_ms_all": [1e3 * w for w in frame],
+            "peer_ms_all": [1e3 * w for w in peer_walls],
+            "voxels": report.counters.get("terrain_voxels"), "peer_samples": peer.samples,
+            # Our terrain is where inv_z > 0 (the earth plane beyond the database has a range
+            # too); the peer's where it has a range.
+            "ours": range_error(ours_c.range_m[pick], ours_c.inv_z[..., 0][pick] > 0.0,
+                                ref_range, ref_hit),
+            "peer": range_error(peer.range_m[pick], np.isfinite(peer.range_m[pick]), ref_range,
+                                ref_hit),
+            "reference_hit_share": float(ref_hit.mean()), "reference_seconds": ref_seconds,
+            "error_pixels": [int(ref_hit.shape[1]), int(ref_hit.shape[0])], "stride": stride}
+
+
+def voxel_space_peer(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
+    """Our terrain stage and the lean Voxel Space peer, side by side (record["voxel_space_peer"])."""
+    from bench.scenes.terrain import describe, eyepoint_above, fractal_terrain, terrain_scene
+    from bench.voxel_space import GROWTH, voxel_maps
+    from channel_worker.pipeline.scene.terrain.bundled import load_bundled_terrain
+
+    progress("Voxel Space peer: loading both databases and taking their level-0 maps")
+    terrains = {"fractal": fractal_terrain(), "jacksboro": load_bundled_terrain()}
+    maps, map_seconds = {}, {}
+    for name, terrain in terrains.items():
+        t0 = time.perf_counter()
+        maps[name] = voxel_maps(terrain)
+        map_seconds[name] = time.perf_counter() - t0
+    databases = {name: terrain_scene(t) for name, t in terrains.items()}
+
+    views: list[dict[str, Any]] = []
+    for approach in APPROACHES:
+        distances = approach["distances_m"][:PEER_QUICK["distances"]] if quick \
+            else approach["distances_m"]
+        for d, eye in glide_eyepoints(terrains[approach["terrain"]], approach, distances):
+            views.append({"set": f"approach, {approach['terrain']}", "terrain": approach["terrain"],
+                          "view": f"{d / 1e3:g} km out, {eye.position[2]:.0f} m", "eye": eye,
+                          "stride": PEER_QUICK["stride"] if quick else PEER_STRIDE})
+    fractal = terrains["fractal"]
+    x, y = sweep_eye_xy(fractal)
+    sweep_views = PEER_QUICK["sweep"] if quick else [(a, p) for a in ALTITUDES_M
+                                                     for p in PEER_SWEEP_PITCHES_DEG]
+    for agl, pitch in sweep_views:
+        eye = eyepoint_above(fractal, x, y, float(agl), heading_deg=HEADING_DEG,
+                             pitch_deg=float(pitch))
+        views.append({"set": "sweep, fractal", "terrain": "fractal",
+                      "view": f"{agl} m, pitch {pitch}", "eye": eye,
+                      "stride": PEER_QUICK["stride"] if quick else PEER_SWEEP_STRIDE})
+
+    rows = []
+    for v in views:
+        name = v["terrain"]
+        case = peer_case(terrains[name], databases[name], maps[name], v["eye"], repeats,
+                         v["stride"])
+        eye = v.pop("eye")
+        rows.append({**v, "position_m": [float(c) for c in eye.position],
+                     "hpr_deg": [eye.heading_deg, eye.pitch_deg, eye.roll_deg], **case})
+        progress(f"peer, {v['set']}, {v['view']}: ours {case['terrain_ms']:6.1f} ms (frame "
+                 f"{case['frame_ms']:6.1f}), peer {case['peer_ms']:5.1f} ms, x "
+                 f"{case['ratio_terrain_over_peer']:.1f}; range p95 ours "
+                 f"{100 * case['ours']['range_p95']:.3f} %, peer "
+                 f"{100 * case['peer']['range_p95']:.3f} %")
+    summary = []
+    for name in dict.fromkeys(r["set"] for r in rows):
+        sel = [r for r in rows if r["set"] == name]
+        summary.append({"set": name, "views": len(sel),
+                        **{key: float(np.mean([r[key] for r in sel]))
+                           for key in ("terrain_ms", "frame_ms", "peer_ms")},
+                        "ratio_terrain_over_peer_worst": max(r["ratio_terrain_over_peer"]
+                                                             for r in sel),
+                        **{f"{who}_{key}": float(np.mean([r[who][key] for r in sel]))
+                           for who in ("ours", "peer")
+                           for key in ("range_median", "range_p95", "coverage_disagree")}})
+        s = summary[-1]
+        s["ratio_terrain_over_peer"] = s["terrain_ms"] / s["peer_ms"]
+        s["ratio_frame_over_peer"] = s["frame_ms"] / s["peer_ms"]
+    worst = max(r["ratio_terrain_over_peer"] for r in rows)
+    record["voxel_space_peer"] = {
+        "what": "our background stage (JP H07-76990 voxel terrain) at 4 samples against a lean "
+                "Voxel Space renderer (bench/voxel_space.py) at 1 sample, same eyes, same "
+                "channel frustum, same database, one thread on one pinned core",
+        "peer": {"algorithm": "Voxel Space (NovaLogic, Comanche 1992; US 5,550,959, US "
+                              "6,020,893; S. Macke's description, "
+                              "github.com/s-macke/VoxelSpace): per screen column a "
+                              "front-to-back march over the height map along the column's "
+                              "ground ray with a y-buffer; nearest map cell; one sample per "
+                              "pixel; pitch as a horizon shift, no roll",
+                 "maps": "level 0 of the database: cell height = the surface at the voxel "
+                         "centre (mean of its corners), colour = mean of its corners in linear "
+                         "light (sRGB 8-bit); pattern voxels as columns to the pattern's top",
+                 "step": f"dz = one cell + {GROWTH:g} z (z: depth along the view)",
+                 "output": "(H, W, 3) float32 linear RGB and (H, W) float32 range from the eye "
+                           "to the map sample drawn, row-major like our frame, buffers reused",
+                 "numba": "one @njit kernel, no parallel loop"},
+        "ours": {"samples": SAMPLES, "what": "render_frame on a terrain-only scene (no polygons, "
+                                             "haze or clouds) as a channel worker calls it: "
+                                             "with_range=False, output buffer reused; "
+                                             "terrain_ms = FrameReport.stage_seconds"
+                                             "['background'], frame_ms = the call's wall time"},
+        "channel": {"width": WIDTH, "height": HEIGHT, "fov_h_deg": FOV_H_DEG,
+                    "square_pixels": True},
+        "timing": "medians over the repeats after one warm-up frame each; ours and the peer's "
+                  "frame alternate in every repetition",
+        "error": "relative range error |r - r_ref| / r_ref at the centre of every stride-th pixel "
+                 "each way (from pixel stride // 2) where both the renderer and the reference "
+                 "see terrain (median and 95th percentile), and the share of those pixels where "
+                 "they disagree on seeing terrain (ours: inv_z > 0, so the earth plane beyond "
+                 "the database is not terrain; the peer: a finite range); the reference is "
+                 "channel_worker/testing/terrain_reference.py reference_rays (exact ray casting "
+                 "of the level-0 surface) through the pixel centre; ours: render_background "
+                 "alone with one centre sample (its range_m), as in speed_vs_error; the peer: "
+                 "its range_m",
+        "glide_deg": GLIDE_DEG, "approaches": [dict(a) for a in APPROACHES],
+        "sweep": {"eye_xy_m": [x, y], "heading_deg": HEADING_DEG,
+                  "views": [list(v) for v in sweep_views]},
+        "terrains": {name: describe(t) for name, t in terrains.items()},
+        "voxel_maps_seconds": map_seconds,
+        "aggregate": "per set of views: mean of the times (ratio = mean ours / mean peer), "
+                     "the worst view's ratio, means of the error figures",
+        "rows": rows, "summary": summary,
+        "target": {"what": "our terrain stage at 4 samples <= 1.0 x the peer's time at 1 sample "
+                           "(issue 14), on every view", "required": PEER_TARGET_RATIO,
+                   "measured_worst": worst, "met": worst <= PEER_TARGET_RATIO},
+        "quick": quick, "repeats": repeats}
+
+
+def peer_only(out: Path, quick: bool, repeats: int, cpu: int | None, progress: Progress) -> int:
+    """--peer-only: run section 6 and put it into terrain.json beside the other sections'
+    (they keep their own date and machine; this one records its own)."""
+    import json
+
+    import numba
+    from bench_render import machine
+
+    path = out / "terrain.json"
+    record = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+    peer: dict[str, Any] = {}
+    voxel_space_peer(peer, quick, repeats, progress)
+    section = peer["voxel_space_peer"]
+    section.update({"date": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+                    "machine": machine(), "git": git_state(),
+                    "one_core": {"cpu": cpu, "numba_threads": numba.get_num_threads()},
+                    "seconds": progress.seconds})
+    section["machine"]["load_average_1min_at_end"] = (os.getloadavg()[0]
+                                                      if hasattr(os, "getloadavg") else None)
+    record["voxel_space_peer"] = section
+    print_peer(section)
+    out.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+    print(f"wrote {path} (voxel_space_peer)")
+    return 0
+
+
 # --- report ----------------------------------------------------------------------------------
 
 def table(head: list[str], body: list[list[str]]) -> None:
@@ -814,6 +1080,8 @@ def print_report(record: dict) -> None:
     if not sv["module_constant_patch_effective"]:
         print("  (setting terrain.PREIMAGE_OVERSAMPLE had no effect at this commit: the "
               "oversample rows all show the default)")
+    if "voxel_space_peer" in record:  # records before the peer have none
+        print_peer(record["voxel_space_peer"])
     m = record["machine"]
     noise = record["sweep_noise"]
     print(f"\nnoise: the slowest of a sweep cell's frames is x {noise['median']:.2f} the fastest "
@@ -821,6 +1089,34 @@ def print_report(record: dict) -> None:
           "process shared the CPU: rerun")
     print(f"load average {m['load_average_1min']:.2f} at the start, "
           f"{m['load_average_1min_at_end']:.2f} at the end; {record['seconds']:.0f} s in all")
+
+
+def print_peer(peer: dict) -> None:
+    """The side-by-side table of our terrain stage and the Voxel Space peer."""
+    ch = peer["channel"]
+    print(f"\nVoxel Space peer: our background stage ({peer['ours']['samples']}) against the "
+          f"lean Voxel Space renderer (1 sample), {ch['width']} x {ch['height']}, one core, median "
+          "ms; relative range error at pixel centres against the exact reference (median, p95, "
+          "per cent) and the share of pixels disagreeing on terrain or not (cov, per cent)")
+    head = ["set", "view", "ours", "frame", "peer", "ours/peer", "frame/peer", "med ours",
+            "med peer", "p95 ours", "p95 peer", "cov ours", "cov peer"]
+
+    def cells(r: dict, ours: dict, theirs: dict) -> list[str]:
+        return [f"{r['terrain_ms']:.1f}", f"{r['frame_ms']:.1f}", f"{r['peer_ms']:.1f}",
+                f"{r['ratio_terrain_over_peer']:.1f}", f"{r['ratio_frame_over_peer']:.1f}",
+                *(f"{100.0 * d[key]:.3f}" for key in ("range_median", "range_p95",
+                                                      "coverage_disagree")
+                  for d in (ours, theirs))]
+
+    body = [[r["set"], r["view"], *cells(r, r["ours"], r["peer"])] for r in peer["rows"]]
+    for s in peer["summary"]:
+        body.append([s["set"], f"mean of {s['views']}", *cells(
+            s, {k: s[f"ours_{k}"] for k in ("range_median", "range_p95", "coverage_disagree")},
+            {k: s[f"peer_{k}"] for k in ("range_median", "range_p95", "coverage_disagree")})])
+    table(head, body)
+    t = peer["target"]
+    print(f"target: {t['what']}: worst ours / peer x {t['measured_worst']:.1f} -> "
+          + ("MET" if t["met"] else "NOT MET"))
 
 
 def plot(record: dict, path: Path) -> bool:
