@@ -89,10 +89,12 @@ def main(argv: list[str] | None = None) -> int:
 
 def load(quick: bool) -> dict[str, Any]:
     """The demo scene (its terrain built on first use), the centre channel, the eyepoints."""
+    from channel_worker.pipeline.memory import keep_freed_memory
     from channel_worker.pipeline.scene.load import demo_scene_path, load_scene
     from host_sim.flight import bundled_flight
     from services.rig.rigfile import default_rig_path, load_rig
 
+    keep_freed_memory()  # as a worker does before its first frame
     print("loading the demo scene (builds the bundled terrain on first use)", file=sys.stderr)
     scene = load_scene(demo_scene_path())
     channel = next(ch.spec for ch in load_rig(default_rig_path()).channels
@@ -183,6 +185,7 @@ def measure(setup: dict[str, Any], repeats: int, quick: bool, cpu: int | None) -
     for t_s, eye, phase in setup["eyes"]:
         walls: dict[int, list[float]] = {n: [] for n in THREADS}
         stages: dict[int, list[dict[str, float]]] = {n: [] for n in THREADS}
+        parts: dict[int, list[dict[str, float]]] = {n: [] for n in THREADS}
         counters: dict[int, dict[str, int]] = {}
         other = OtherLoad()
         for k in range(repeats + 1):  # the first is this eyepoint's warm-up (pages are read)
@@ -196,6 +199,7 @@ def measure(setup: dict[str, Any], repeats: int, quick: bool, cpu: int | None) -
                 if k:
                     walls[threads].append(wall)
                     stages[threads].append(dict(report.stage_seconds))
+                    parts[threads].append(dict(report.part_seconds))
                     counters[threads] = dict(report.counters)
         row: dict[str, Any] = {"t_s": t_s, "phase": phase, "other_cpus": other.cpus(),
                                "position_m": [float(v) for v in eye.position],
@@ -206,6 +210,8 @@ def measure(setup: dict[str, Any], repeats: int, quick: bool, cpu: int | None) -
                 "frame_ms": 1e3 * statistics.median(walls[n]), "frame_min_ms": 1e3 * min(walls[n]),
                 "frame_ms_all": [1e3 * w for w in walls[n]],
                 "stages_ms": {s: 1e3 * statistics.median(r[s] for r in stages[n]) for s in names},
+                "parts_ms": {s: 1e3 * statistics.median(r.get(s, 0.0) for r in parts[n])
+                             for s in parts[n][0]},
                 "counters": counters[n]}
         row["speedup"] = row["threads_1"]["frame_ms"] / row["threads_2"]["frame_ms"]
         rows.append(row)
@@ -259,6 +265,10 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     for s in stages:
         one = sum(r["threads_1"]["stages_ms"].get(s, 0.0) for r in rows)
         two = sum(r["threads_2"]["stages_ms"].get(s, 0.0) for r in rows)
+        stage_speedup[s] = one / two if two > 0.0 else None
+    for s in rows[0]["threads_1"].get("parts_ms", {}):
+        one = sum(r["threads_1"]["parts_ms"].get(s, 0.0) for r in rows)
+        two = sum(r["threads_2"]["parts_ms"].get(s, 0.0) for r in rows)
         stage_speedup[s] = one / two if two > 0.0 else None
     speedup = total[1] / total[2]
     return {
@@ -373,6 +383,13 @@ def print_report(record: dict[str, Any]) -> None:
         body.append([s] + [f"{r[f'threads_{n}']['stages_ms'].get(s, 0.0):.2f}"
                            for r in rows for n in THREADS]
                     + [f"{sp:.2f}" if sp is not None else "-"])
+        # The stage's parts (FrameReport.part_seconds, e.g. background.scan) under it.
+        for part in rows[0]["threads_1"].get("parts_ms", {}):
+            if part.startswith(s + "."):
+                sp = summary["speedup_by_stage"].get(part)
+                body.append([part[len(s):]] + [
+                    f"{r[f'threads_{n}'].get('parts_ms', {}).get(part, 0.0):.2f}"
+                    for r in rows for n in THREADS] + [f"{sp:.2f}" if sp is not None else "-"])
     body.append(["frame"] + [f"{r[f'threads_{n}']['frame_ms']:.2f}" for r in rows for n in THREADS]
                 + [f"{summary['speedup_overall']:.2f}"])
     table(head, body)

@@ -46,6 +46,7 @@ from services.rig.report import FrameReport
 from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_proto
 
 from .pipeline.kernel_cache import serialise_cache_writes
+from .pipeline.memory import keep_freed_memory
 from .pipeline.render import render_frame
 from .pipeline.scene.database import Database
 
@@ -272,6 +273,7 @@ class ChannelWorker:
         `ig compile` may compile the same kernels at once.
         """
         serialise_cache_writes()
+        keep_freed_memory()
         tiny = ChannelSpec("warm-up", 8, 6, self.channel.left_deg, self.channel.right_deg,
                            self.channel.bottom_deg, self.channel.top_deg)
         image = render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)

@@ -5,10 +5,11 @@ Background); the groups here never leave the background stage. Each is a NamedTu
 and numbers, which numba passes whole into a kernel, so every kernel's signature says at a
 glance what it consumes:
 
-    scan_kernel(pages: VoxelPages, grid: ColumnGrid, limits: ScanLimits, air, out_pre, out_visits)
+    scan_kernel(pages: VoxelPages, grid: ColumnGrid, limits: ScanLimits, air, out_pre, out_visits,
+                threads)
     scan_clouds_kernel(slabs: CloudSlabs, columns: CloudColumns, eye, r_far, air, out)
     warp_kernel(frame, pre: Preimage, air, sky_haze: SkyHaze, clouds: CloudImage,
-                depth: SampleDepth, block, out: BackgroundArrays)
+                depth: SampleDepth, block, out: BackgroundArrays, threads)
     sky_earth_kernel(frame, air, out_rgb, out_range)
 
 Angles are radians: azimuth clockwise from north, elevation up from the horizontal. Ground

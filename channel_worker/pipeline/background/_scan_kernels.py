@@ -25,7 +25,7 @@ from numba import njit, prange
 
 from channel_worker.pipeline.contract import F_ON, F_RGB, F_WORLD_AXIS
 from channel_worker.pipeline.fog.fog import fog_depth
-from channel_worker.pipeline.jit import borrowing
+from channel_worker.pipeline.jit import borrowing, lanes
 
 from ._groups import PRE_A, PRE_B, PRE_CHANNELS, PRE_G, PRE_IR, PRE_R
 from .haze import haze_amount
@@ -36,6 +36,8 @@ _R1, _Z1, _R2, _Z2 = 8, 9, 10, 11  # the last segment emitted
 _TANMAX = 12  # tan of _TMAX, from the point that set it
 _AXH = 13  # fog: the column's rays' axis cosine is _AXH cos(elevation) + axis z sin(elevation)
 _STATE = 14
+#: Columns per parallel task of scan_kernel.
+_COLUMN_BLOCK = 16
 
 #: Depth of the skirt down the database's edge (metres): deep enough to reach below any
 #: horizon the scan starts from.
@@ -303,7 +305,7 @@ def _page_of(pages, level, ix, iy):
 
 
 @njit(cache=True, parallel=True)
-def scan_kernel(pages, grid, limits, air, out_pre, out_visits):
+def scan_kernel(pages, grid, limits, air, out_pre, out_visits, threads):
     """One radial scan across the ground grid per pre-image column (JP H07-76990).
 
     Column j is the vertical half-plane through the eye at azimuth grid.phi_lo + (j + 1/2)
@@ -330,42 +332,55 @@ def scan_kernel(pages, grid, limits, air, out_pre, out_visits):
         air: the frame's air array (haze, then fog; contract.py).
         out_pre: (ncols, nrows, PRE_CHANNELS) float32 the pre-image texels.
         out_visits: (ncols,) int64 voxels visited by each column.
+        threads: numba.get_num_threads() (jit.lanes).
     """
+    ncols = grid.ncols
+    # Blocks of columns interleaved over the threads (jit.lanes): the terrain, and with it a
+    # column's cost, differs from one side of the view to the other.
+    n_blocks = (ncols + _COLUMN_BLOCK - 1) // _COLUMN_BLOCK
+    n_lanes = lanes(threads, n_blocks)
+    for lane in prange(n_lanes):
+        st = np.empty(_STATE)
+        for blk in range(lane, n_blocks, n_lanes):
+            for j in range(blk * _COLUMN_BLOCK, min(ncols, (blk + 1) * _COLUMN_BLOCK)):
+                _column(j, st, pages, grid, limits, air, out_pre, out_visits)
+
+
+@borrowing
+def _column(j, st, pages, grid, limits, air, out_pre, out_visits):
+    """Column j of scan_kernel, with st as its scan state."""
     kmax = limits.first_row.shape[0] - 1
     ncols = grid.ncols
     nrows = grid.nrows
-    for j in prange(ncols):
-        st = np.zeros(_STATE)
-        k = kmax
-        if j != 0 and j != ncols - 1:  # the first and last columns scan every row
-            k = 0
-            while k < kmax and (j >> k) & 1 == 0:
-                k += 1
-        start = limits.first_row[k]
-        st[_ROW] = start
-        phi = grid.phi_lo + (j + 0.5) * grid.dphi
-        st[_AXH] = air[F_WORLD_AXIS] * math.sin(phi) + air[F_WORLD_AXIS + 1] * math.cos(phi)
-        theta_lo = grid.theta0 + start * grid.dtheta
-        st[_TMAX] = theta_lo
-        out = out_pre[j]
-        # np.int64: numba types a prange index unsigned, and the column function would be
-        # compiled a second time for it.
-        out_visits[j] = _scan_column(np.int64(j), st, pages, grid, limits, theta_lo, air, out)
-        # The row the scan stopped in holds what covered it so far (a silhouette).
-        if int(st[_ROW]) < nrows and st[_AW] > 0.0:
-            _finish_row(out, st, grid, air)
-        # Rows the scan never finished see nothing (texels below the column's first row are
-        # fill_skipped's). The first of them keeps the last surface's inverse range continued
-        # (with no coverage): the warp interpolates between it and the last covered row,
-        # which is exact for planar ground right up to the edge.
-        row = int(st[_ROW])
-        for i in range(row, nrows):
-            for c in range(PRE_CHANNELS):
-                out[i, c] = 0.0
-        if row < nrows and (st[_R1] != 0.0 or st[_R2] != 0.0):
-            out[row, PRE_IR] = _inverse_range_on_line(
-                grid.row_cs[row, 0], grid.row_cs[row, 1], (st[_R1], st[_Z1], st[_R2], st[_Z2]))
-
+    for q in range(_STATE):
+        st[q] = 0.0
+    k = kmax
+    if j != 0 and j != ncols - 1:  # the first and last columns scan every row
+        k = 0
+        while k < kmax and (j >> k) & 1 == 0:
+            k += 1
+    start = limits.first_row[k]
+    st[_ROW] = start
+    phi = grid.phi_lo + (j + 0.5) * grid.dphi
+    st[_AXH] = air[F_WORLD_AXIS] * math.sin(phi) + air[F_WORLD_AXIS + 1] * math.cos(phi)
+    theta_lo = grid.theta0 + start * grid.dtheta
+    st[_TMAX] = theta_lo
+    out = out_pre[j]
+    out_visits[j] = _scan_column(j, st, pages, grid, limits, theta_lo, air, out)
+    # The row the scan stopped in holds what covered it so far (a silhouette).
+    if int(st[_ROW]) < nrows and st[_AW] > 0.0:
+        _finish_row(out, st, grid, air)
+    # Rows the scan never finished see nothing (texels below the column's first row are
+    # fill_skipped's). The first of them keeps the last surface's inverse range continued
+    # (with no coverage): the warp interpolates between it and the last covered row, which
+    # is exact for planar ground right up to the edge.
+    row = int(st[_ROW])
+    for i in range(row, nrows):
+        for c in range(PRE_CHANNELS):
+            out[i, c] = 0.0
+    if row < nrows and (st[_R1] != 0.0 or st[_R2] != 0.0):
+        out[row, PRE_IR] = _inverse_range_on_line(
+            grid.row_cs[row, 0], grid.row_cs[row, 1], (st[_R1], st[_Z1], st[_R2], st[_Z2]))
 
 @njit(cache=True, parallel=True)
 def fill_skipped(pre, first_row, full):

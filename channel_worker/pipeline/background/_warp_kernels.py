@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 from numba import njit, prange
 
-from channel_worker.pipeline.jit import borrowing
+from channel_worker.pipeline.jit import borrowing, lanes
 
 from ._groups import PRE_A, PRE_B, PRE_G, PRE_IR, PRE_R
 from ._sky_kernels import earth_samples, sky_and_earth
@@ -59,7 +59,7 @@ def _map_point(sx, sy, frame, pre):
 
 
 @njit(cache=True, parallel=True)
-def warp_kernel(frame, pre, air, sky_haze, clouds, depth, block, out):
+def warp_kernel(frame, pre, air, sky_haze, clouds, depth, block, out, threads):
     """Every output pixel and sample from the pre-image: roll, vertical perspective and the
     off-axis frustum in one inverse mapping, bilinear (anti-aliased) resampling.
 
@@ -87,12 +87,16 @@ def warp_kernel(frame, pre, air, sky_haze, clouds, depth, block, out):
         depth: where per-sample depth is wanted, and the polygon margin (SampleDepth).
         block: pixels per side of the blocks mapped at their corners.
         out: the arrays filled (BackgroundArrays).
+        threads: numba.get_num_threads() (jit.lanes).
     """
     blocks_y = (frame.height + block - 1) // block
     # A row of blocks per task, in a function of its own: numba's parallel array analysis
     # fails on the corner tuples of _block_corners inlined into the loop body.
-    for by in prange(blocks_y):
-        _warp_row(frame, pre, air, sky_haze, clouds, depth, block, out, by * block)
+    # Rows interleaved over the threads (jit.lanes): sky rows cost less than terrain rows.
+    n_lanes = lanes(threads, blocks_y)
+    for lane in prange(n_lanes):
+        for by in range(lane, blocks_y, n_lanes):
+            _warp_row(frame, pre, air, sky_haze, clouds, depth, block, out, by * block)
 
 
 @borrowing

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import time
 
+import numba
 import numpy as np
 
 from channel_worker.pipeline.contract import (
@@ -111,7 +112,8 @@ def render_background(database: Database, view: View, frame: FrameConstants,
     t2 = time.perf_counter()
     out = BackgroundArrays(np.empty((h, w, 3), np.float32), np.empty((h, w, s), np.float32),
                            np.empty((h, w), np.float32), cloud)
-    warp_kernel(frame, pre, air, _sky_haze(air, grid), clouds, depth, WARP_BLOCK, out)
+    warp_kernel(frame, pre, air, _sky_haze(air, grid), clouds, depth, WARP_BLOCK, out,
+                numba.get_num_threads())
     if parts is not None:
         parts["background.scan"] = t1 - t0
         parts["background.clouds"] = t2 - t1

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
 from channel_worker.pipeline.contract import View
@@ -182,7 +183,8 @@ def scan_terrain(database: Database, view: View, grid: PreimageGrid, air: np.nda
     visits = np.zeros(grid.ncols, np.int64)
     limits = ScanLimits(grid.first_row, eye, _level_switch(terrain, view, eye, level_bias),
                         _far_range(database, terrain, view))
-    scan_kernel(voxel_pages(terrain), column_grid(grid), limits, air, pre, visits)
+    scan_kernel(voxel_pages(terrain), column_grid(grid), limits, air, pre, visits,
+                numba.get_num_threads())
     if grid.first_row[0] > 0:  # some columns skipped rows
         fill_skipped(pre, grid.first_row, grid.full)
     counters["terrain_voxels"] = int(visits.sum())

@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from channel_worker.pipeline.contract import EARTH_ID, SKY_ID, SUBPIXEL
-from channel_worker.pipeline.jit import borrowing
+from channel_worker.pipeline.jit import borrowing, lanes
 
 #: Edge kinds (the Note's EN/EX bit, plus horizontal edges, which bound no span along the scan:
 #: on a scan line they either keep the whole line or none of it).
@@ -199,7 +199,7 @@ def edge_list_kernel(fixed, start, height, out, out_extended):
 
 
 @njit(cache=True, parallel=True)
-def scan_frame_kernel(edges, incidence, faces, frame, n_bands, out, band_stats):
+def scan_frame_kernel(edges, incidence, faces, frame, n_bands, out, band_stats, threads):
     """Run the scan-line algorithm over the frame, bands of scan lines in parallel.
 
     Each band runs the phases of ARL Systems Note 77 on its own lines from its own ACTIVE LIST;
@@ -208,16 +208,21 @@ def scan_frame_kernel(edges, incidence, faces, frame, n_bands, out, band_stats):
 
     edges: the EdgeList; incidence: edge indices by ascending jmin (the INCIDENCE LIST);
     faces: the PriorityList; frame: FrameConstants (horizon, mapping); out: ScanOut (opaque,
-    trans, count zeroed); band_stats: (n_bands, N_STATS) int64 zeroed.
+    trans, count zeroed); band_stats: (n_bands, N_STATS) int64 zeroed; threads:
+    numba.get_num_threads() (jit.lanes).
     """
     height = out.range_m.shape[0]
     # Guard: the caller passes 1 <= n_bands <= height.
     rows = (height + n_bands - 1) // n_bands
-    for band in prange(n_bands):
-        y_lo = band * rows
-        y_hi = min(height, y_lo + rows)
-        if y_lo < y_hi:
-            _scan_band(y_lo, y_hi, edges, incidence, faces, frame, out, band_stats[band])
+    # Bands interleaved over the threads (jit.lanes): a thread's bands lie all down the image,
+    # so sky bands and busy ones are shared out.
+    n_lanes = lanes(threads, n_bands)
+    for lane in prange(n_lanes):
+        for band in range(lane, n_bands, n_lanes):
+            y_lo = band * rows
+            y_hi = min(height, y_lo + rows)
+            if y_lo < y_hi:
+                _scan_band(y_lo, y_hi, edges, incidence, faces, frame, out, band_stats[band])
 
 
 @njit(cache=True)

@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit, prange
 
 from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, SKY_ID, SUBPIXEL
-from channel_worker.pipeline.jit import borrowing
+from channel_worker.pipeline.jit import borrowing, lanes
 from channel_worker.pipeline.resolve._resolve_kernels import box_subarea
 from channel_worker.pipeline.resolve.shading import sample_point
 
@@ -86,7 +86,7 @@ def _nearer(iz, lay, idx, ref_iz, ref_lay, ref_idx):
 
 
 @njit(cache=True, parallel=True)
-def visibility_kernel(bins, screen, edges, frame, background, sh, out):
+def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads):
     """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
@@ -96,7 +96,7 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, out):
 
     bins, screen, edges, frame, background: the contract's values (Bins, ScreenPolygons,
     Edges, FrameConstants, Background); sh: the frame's Shading (resolve.shading), used on the
-    fused path; out: StoreOut.
+    fused path; out: StoreOut; threads: numba.get_num_threads() (jit.lanes).
 
     With a background (background.on) every sample starts out holding it as its nearest opaque
     feature (BACKGROUND_ID at background.inv_z, nothing where that is 0), so polygons behind
@@ -110,16 +110,24 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, out):
     max_edges = 3
     for p in range(screen.start.shape[0] - 1):
         max_edges = max(max_edges, screen.start[p + 1] - screen.start[p])
-    # A thread takes a whole row of sub-areas at a time (handed out one by one, for balance:
-    # sky rows are cheap) and walks it left to right, so its pixel writes run along the
-    # image rows instead of jumping a page per row of every sub-area; the sample store is
-    # allocated once per row of sub-areas. (The caller sets the parallel chunk size to 1.)
-    for row in prange(bins.tiles_y):
+    # A thread takes whole rows of sub-areas, every lanes-th one (sky rows are cheap, ground
+    # rows dear: interleaving balances them, see jit.lanes), and walks each left to right,
+    # so its pixel writes run along the image rows instead of jumping a page per row of
+    # every sub-area; the sample store is allocated once per thread.
+    n_lanes = lanes(threads, bins.tiles_y)
+    for lane in prange(n_lanes):
         n_t = n_max if out.any_translucent else 1
         sc = Scratch(np.empty(n_max, np.float64), np.empty(n_max, np.int32),
                      np.empty(n_max, np.int32), np.empty((n_t, k_max), np.float64),
                      np.empty((n_t, k_max), np.int32), np.empty((n_t, k_max), np.int32),
                      np.zeros(n_t, np.int32), np.empty(max_edges, np.int64))
+        _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc)
+
+
+@borrowing
+def _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc):
+    """The sub-areas of visibility_kernel's lane: rows lane, lane + n_lanes, ..."""
+    for row in range(lane, bins.tiles_y, n_lanes):
         for t in range(row * bins.tiles_x, (row + 1) * bins.tiles_x):
             _tile(t, bins, screen, edges, frame, background, sh, out, sc)
 

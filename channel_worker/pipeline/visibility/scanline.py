@@ -62,7 +62,8 @@ from ._scanline_kernels import (
 CENTRE_OFFSETS = np.array([[0.5, 0.5]], np.float64)
 
 #: Bands of scan lines per thread. A band is the unit of parallel work (each builds its own
-#: ACTIVE LIST at its first line); a few per thread balance sky rows against busy ones.
+#: ACTIVE LIST at its first line); a few per thread, interleaved, balance sky rows against
+#: busy ones.
 BANDS_PER_THREAD = 4
 
 
@@ -96,10 +97,11 @@ def scanline_visibility(screen: ScreenPolygons, frame: FrameConstants, options: 
     incidence = np.argsort(edges.jmin, kind="stable").astype(np.int64)
     out = ScanOut(np.empty((h, w, 1), np.int32), np.zeros((h, w, 1, k), np.int32),
                   np.zeros((h, w, 1), np.uint8), np.empty((h, w), np.float32))
-    n_bands = max(1, min(h, BANDS_PER_THREAD * numba.get_num_threads()))
+    threads = numba.get_num_threads()
+    n_bands = max(1, min(h, BANDS_PER_THREAD * threads))
     band_stats = np.zeros((n_bands, N_STATS), np.int64)
     faces = PriorityList(rank, screen.opacity >= 1.0, np.ascontiguousarray(screen.inv_z, np.float64))
-    scan_frame_kernel(edges, incidence, faces, frame, n_bands, out, band_stats)
+    scan_frame_kernel(edges, incidence, faces, frame, n_bands, out, band_stats, threads)
     totals = band_stats.sum(axis=0)
     counters.update({
         "edges": int(edges.kind.shape[0]),

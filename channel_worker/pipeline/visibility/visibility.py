@@ -108,14 +108,9 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: Fram
 
 def _run(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameConstants,
          background: Background, out: StoreOut, counters: dict[str, int]) -> None:
-    # Rows of sub-areas are handed to threads one at a time: their cost varies a lot.
-    previous = numba.set_parallel_chunksize(1)
-    try:
-        # Layers as int32, like the store's: one integer type in every depth comparison.
-        visibility_kernel(bins, screen._replace(layer=screen.layer.astype(np.int32)), edges, frame,
-                          background, shading(screen, frame, background), out)
-    finally:
-        numba.set_parallel_chunksize(previous)
+    # Layers as int32, like the store's: one integer type in every depth comparison.
+    visibility_kernel(bins, screen._replace(layer=screen.layer.astype(np.int32)), edges, frame,
+                      background, shading(screen, frame, background), out, numba.get_num_threads())
     counters.update(bins.counters())
     counters["translucent_dropped"] = int(out.dropped.sum())
     counters["entries_skipped_by_depth"] = int(out.stopped.sum())
