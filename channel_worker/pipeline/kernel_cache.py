@@ -8,9 +8,10 @@ code in every kernel that inlined it. The pipeline is therefore cached as a whol
 directory named after a hash of every source file of the pipeline package and numba's version:
 an edit anywhere gives a new directory, whose kernels compile afresh, and nothing is deleted
 behind anyone's back. All processes of a machine that run the same sources share one
-directory, so the kernels compile once per machine: `ig compile` does it ahead of a run (`ig
-demo` runs it before it starts the workers), and `ig compile --prune` removes the directories of
-other sources.
+directory, so the kernels compile once per machine and checkout (numba keys its entries by the
+source files' paths and time stamps, so another clone of the same sources compiles again):
+`ig compile` does it ahead of a run (`ig demo` runs it before it starts the workers), and
+`ig compile --prune` removes the directories of other sources.
 
 The directory is ``$IG_CACHE_DIR/numba/<key>`` (IG_CACHE_DIR defaults to ~/.cache/ig-rig, where
 the bundled terrain is cached too). It is chosen by setting NUMBA_CACHE_DIR when the pipeline
@@ -58,6 +59,19 @@ def sources_key() -> str:
         digest.update(path.read_bytes())
     digest.update(metadata.version("numba").encode())
     digest.update(sys.version.encode())
+    return digest.hexdigest()[:16]
+
+
+def sources_stamp() -> str:
+    """16 hex digits of a hash of what numba itself checks a cached kernel against: the
+    absolute path of every pipeline source file (its index lives under a directory named after
+    the path) and the file's modification time and size. The same sources in another clone, or
+    checked out again, share kernel_cache_dir() but none of numba's entries there: each clone
+    compiles afresh, and `ig compile` must know it will (compile_jobs.compiled_before)."""
+    digest = hashlib.sha256()
+    for path in sorted(_PIPELINE.rglob("*.py")):
+        st = path.stat()
+        digest.update(f"{path}\0{st.st_mtime_ns}\0{st.st_size}\0".encode())
     return digest.hexdigest()[:16]
 
 

@@ -160,3 +160,19 @@ def test_jobs_must_be_a_whole_number_of_processes():
     for bad in ("0", "-1", "two"):
         with pytest.raises(SystemExit):
             parser.parse_args(["--jobs", bad])
+
+
+def test_a_compile_is_remembered_only_for_the_sources_numba_keyed_it_by(tmp_path, monkeypatch):
+    # numba keys its entries by the sources' paths and time stamps: a clone elsewhere, or the
+    # same sources written again, compiles afresh, so the marker must not claim otherwise.
+    from channel_worker import compile_jobs
+    from channel_worker.pipeline import kernel_cache
+
+    monkeypatch.setenv("IG_CACHE_DIR", str(tmp_path / "cache"))
+    request = CompileRequest(str(bundled_scene_path()), RenderOptions(), ChannelSpec("c", 8, 6, -30, 30, -20, 20))
+    kernel_cache.kernel_cache_dir().mkdir(parents=True)
+    assert not compile_jobs.compiled_before(request)
+    compile_jobs.mark_compiled(request, 30)
+    assert compile_jobs.compiled_before(request)
+    monkeypatch.setattr(kernel_cache, "sources_stamp", lambda: "another clone")
+    assert not compile_jobs.compiled_before(request)
