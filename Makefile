@@ -6,10 +6,13 @@ STAMP := $(VENV)/.installed-stamp
 
 .PHONY: demo test check bench clean proto
 
+# --no-compile: pip would byte-compile every installed module (15 s on the development
+# machine); Python compiles those a run imports, when it imports them (measured on a fresh clone:
+# make demo's first stitched frame 64.6 -> 56.0 s after the start).
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip >/dev/null
-	$(PY) -m pip install -e '.[test,devices,gis,check]'
+	$(PY) -m pip install --no-compile -e '.[test,devices,gis,check]'
 	touch $(STAMP)
 
 demo: $(STAMP)
