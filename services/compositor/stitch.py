@@ -94,30 +94,40 @@ class FrameRecorder:
 
     Recording is a copy of what the rig shows, not part of showing it: encoding a 3072 x 768
     PNG takes a few hundred milliseconds, longer than a frame. So offer() never waits: when the
-    writer is `depth` composites behind, a composite due for recording is left out and counted
-    (`not_recorded`) instead of holding the channel whose image completed it, and through the
-    frame lock the host. Choose record_every so that the writer keeps up (docs/latency.md).
+    composites waiting to be written (the one being written included) hold max_bytes of pixels,
+    a composite due for recording is left out and counted (`not_recorded`) instead of holding
+    the channel whose image completed it, and through the frame lock the host. The bound is in
+    bytes, not composites, so small channels ride out a stall of the writer (its first write
+    loads the image plugins from disk; on a fresh install that took longer than 8 frames of
+    a 20 Hz test rig) while large ones stay within the same memory. Choose record_every so
+    that the writer keeps up (docs/latency.md).
 
     Args:
         out_dir: directory of the frame files (created when the first one is written).
         record_every: PNG period in frame numbers.
         exr_every: EXR period in frame numbers.
-        depth: composites waiting to be written before further ones are left out.
+        max_bytes: pixels waiting to be written before further composites are left out (one
+            composite is always taken when none waits). The default holds 18 composites of the
+            default rig (3072 x 768 half-float RGB, 14 MB).
     """
 
-    def __init__(self, out_dir: Path, *, record_every: int = 1, exr_every: int = 30, depth: int = 8) -> None:
-        for name, value in (("record_every", record_every), ("exr_every", exr_every), ("depth", depth)):
+    def __init__(self, out_dir: Path, *, record_every: int = 1, exr_every: int = 30,
+                 max_bytes: int = 256 * 2**20) -> None:
+        for name, value in (("record_every", record_every), ("exr_every", exr_every),
+                            ("max_bytes", max_bytes)):
             if value < 0:
                 raise ValueError(f"{name}: {value} must be >= 0")
         self.out_dir = Path(out_dir)
         self.record_every = record_every
         self.exr_every = exr_every
+        self.max_bytes = max_bytes
         self.last_path = ""
         self.last_error = ""
         self._counts = RecorderCounts()
         self._lock = threading.Lock()
+        self._waiting_bytes = 0
         # A stitched composite holds its own pixels, so the queue keeps nothing the gatherer reuses.
-        self._queue: queue.Queue[tuple[Composite, bool, bool] | None] = queue.Queue(maxsize=max(depth, 1))
+        self._queue: queue.Queue[tuple[Composite, bool, bool] | None] = queue.Queue()
         self._thread = threading.Thread(target=self._run, name="frame-recorder", daemon=True)
         self._thread.start()
 
@@ -135,13 +145,14 @@ class FrameRecorder:
         png, exr = self.due(composite.frame.frame_number)
         if not (png or exr):
             return True
-        try:
-            self._queue.put_nowait((composite, png, exr))
-        except queue.Full:
-            with self._lock:
+        size = composite.rgb.nbytes
+        with self._lock:
+            if self._waiting_bytes > 0 and self._waiting_bytes + size > self.max_bytes:
                 self._counts.not_recorded += 1
-            log.debug("frame %d not recorded: the writer is behind", composite.frame.frame_number)
-            return False
+                log.debug("frame %d not recorded: the writer is behind", composite.frame.frame_number)
+                return False
+            self._waiting_bytes += size
+        self._queue.put_nowait((composite, png, exr))
         return True
 
     def close(self) -> None:
@@ -174,3 +185,6 @@ class FrameRecorder:
                     self._counts.errors += 1
                     self.last_error = f"frame {frame.frame_number}: {exc}"
                 log.error("frame %d not written: %s", frame.frame_number, exc)
+            finally:
+                with self._lock:
+                    self._waiting_bytes -= composite.rgb.nbytes

@@ -58,19 +58,21 @@ def test_a_writer_that_is_behind_never_blocks_the_offer(tmp_path, monkeypatch):
         real_write(*args, **kwargs)
 
     monkeypatch.setattr(stitch_module, "write_image", stalled_write)
-    recorder = FrameRecorder(tmp_path, record_every=1, exr_every=0, depth=2)
-    # The writer takes the first composite and stalls on it; two more fill the queue.
+    size = compose(complete(0)).rgb.nbytes
+    recorder = FrameRecorder(tmp_path, record_every=1, exr_every=0, max_bytes=2 * size)
+    # The writer takes the first composite and stalls on it; a second fills the budget.
     results = [recorder.offer(compose(complete(n))) for n in range(6)]
     release.set()
     recorder.close()
     counts = recorder.snapshot()
-    assert results.count(False) == counts.not_recorded >= 6 - 3
+    assert results == [True, True, False, False, False, False]
+    assert counts.not_recorded == 4
     assert counts.written == 6 - counts.not_recorded and counts.errors == 0
     assert len(list(tmp_path.glob("frame_*.png"))) == counts.written
 
 
 def test_frames_not_due_are_not_queued_and_zero_means_never(tmp_path):
-    recorder = FrameRecorder(tmp_path, record_every=0, exr_every=0, depth=1)
+    recorder = FrameRecorder(tmp_path, record_every=0, exr_every=0, max_bytes=1)
     assert all(recorder.offer(compose(complete(n))) for n in range(5))
     recorder.close()
     assert recorder.snapshot().written == 0 and not list(tmp_path.iterdir())
