@@ -32,7 +32,8 @@ __all__ = [
 
 #: URL scheme -> what it opens (for messages and --help).
 SCHEMES = {
-    "can": "can://INTERFACE/CHANNEL (python-can: socketcan, slcan, virtual, udp_multicast, ...)",
+    "can": "can://INTERFACE/CHANNEL (python-can: socketcan, slcan, udp_multicast between processes, "
+           "virtual within one process only, ...)",
     "slcan": "slcan://DEVICE (CAN over serial; same as can://slcan/DEVICE)",
     "canlog": "canlog://PATH (.asc, .blf, .trc replayed at recorded timing)",
     "serial": "serial://DEVICE?baud=N (panel frames, docs/serial-protocol.md)",

@@ -2,10 +2,12 @@
 
 URL: `can://INTERFACE/CHANNEL[?option=value&...]`, for example
 
-    can://virtual/rig                        python-can's in-process bus (tests)
+    can://virtual/rig                        python-can's in-process bus: senders in this
+                                             process only (tests, one-process demos)
     can://socketcan/can0                     Linux SocketCAN
     can://slcan/dev/ttyACM0@115200           CAN over serial (LAWICEL/slcan adapters)
-    can://udp_multicast/239.74.163.2         CAN over UDP multicast between machines
+    can://udp_multicast/239.74.163.2         CAN over UDP multicast between processes and
+                                             machines (needs msgpack: the devices extra)
 
 CHANNEL is the URL path without its leading slash, except that a device path keeps it
 (`dev/ttyACM0` -> `/dev/ttyACM0`); a pyserial URL works as an slcan channel

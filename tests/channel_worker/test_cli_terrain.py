@@ -84,6 +84,24 @@ def test_bad_input_at_run_time_exits_2_with_one_line(dem, tmp_path, capsys):
     assert "--out" in capsys.readouterr().err and (tmp_path / "notes.txt").exists()
 
 
+@pytest.mark.parametrize("cells,cellsize,message", [
+    ("1 2 3\n4 nan 6\n7 8 inf\n", "10",
+     "nodata: 2 of 9 cells are nodata or not finite, the first at row 1, column 1"),
+    ("1 2 3\n4 5 6\n7 8 9\n", "-10", "cellsize: '-10' is not a finite cell size > 0"),
+    ("1 2 3\n4 5 6\n7 8 9\n", "0", "cellsize: '0' is not a finite cell size > 0"),
+])
+def test_cells_that_are_not_finite_and_bad_cell_sizes_exit_2_with_one_line(tmp_path, capsys, cells, cellsize,
+                                                                           message):
+    pytest.importorskip("rasterio")
+    path = tmp_path / "dem.asc"
+    path.write_text(f"ncols 3\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize {cellsize}\n{cells}")
+    out = tmp_path / "dem.igt"
+    assert main(["terrain", "build", f"{path}?nodata=refuse", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("ig terrain: error: ") and message in err and err.count("\n") == 1
+    assert not out.exists()
+
+
 def test_help_describes_every_option(capsys):
     from services.cli import build_parser
     for argv in (["terrain", "--help"], ["terrain", "build", "--help"], ["terrain", "info", "--help"]):

@@ -146,3 +146,44 @@ def test_slcan_over_a_pty():
     finally:
         os.close(master)
         os.close(slave)
+
+
+#: A sender in another process: what can://virtual cannot reach and udp_multicast can.
+_SENDER = """
+import sys, time, can
+from host_sim.inputs import canaerospace as ca
+can_id, data = ca.encode("pitch_control_position", 0.25)
+with can.Bus(interface="udp_multicast", channel=sys.argv[1], port=int(sys.argv[2])) as bus:
+    for _ in range(200):
+        bus.send(can.Message(arbitration_id=can_id, data=data, is_extended_id=False))
+        time.sleep(0.01)
+"""
+
+
+def test_udp_multicast_feeds_a_host_from_another_process():
+    import socket
+    import subprocess
+    import sys
+
+    pytest.importorskip("msgpack", reason="udp_multicast needs msgpack (the devices extra)")
+    with socket.socket() as s:  # a port no other test run is using
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    group = "239.74.163.2"
+    try:
+        src = open_source(f"can://udp_multicast/{group}?port={port}")
+    except ValueError as exc:
+        pytest.skip(f"this machine cannot join a multicast group: {exc}")
+    with src:
+        sender = subprocess.Popen([sys.executable, "-c", _SENDER, group, str(port)], stderr=subprocess.PIPE)
+        try:
+            while sender.poll() is None and not src.poll():
+                time.sleep(0.01)
+            src.poll()
+        finally:
+            sender.kill()
+            _, err = sender.communicate()
+        if src.status().accepted == 0:
+            pytest.skip(f"multicast on this machine delivered nothing to the same host ({err.decode()[-200:]!r})")
+        assert src.latest().pitch == 0.25
+        assert sum(src.status().rejected.values()) == 0

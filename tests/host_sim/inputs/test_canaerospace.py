@@ -7,7 +7,7 @@ import struct
 from pathlib import Path
 
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from host_sim.inputs import canaerospace as ca
@@ -81,3 +81,18 @@ def test_refusals_name_their_cause(can_id, data, extended, cause, words):
     with pytest.raises(Rejected) as err:
         ca.decode(can_id, data, extended=extended)
     assert err.value.cause == cause and words in err.value.detail
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.integers(-(1 << 40), 1 << 40), st.sampled_from([s.can_id for s in ca.CONTROLS])),
+       st.binary(max_size=64), st.booleans())
+def test_any_identifier_and_payload_decode_or_are_refused_by_cause(can_id, data, extended):
+    try:
+        signal, value = ca.decode(can_id, data, extended=extended)
+    except Rejected as rejection:
+        assert rejection.cause in ("unknown_identifier", "bad_length", "wrong_data_type", "not_finite",
+                                   "out_of_range")
+        assert str(can_id) in rejection.detail
+    else:
+        assert signal.can_id == can_id and not extended and len(data) == signal.dlc
+        assert data[1] == signal.data_type and signal.lo <= value <= signal.hi

@@ -90,3 +90,49 @@ def test_every_intact_frame_is_found_whatever_is_between_and_however_the_bytes_a
     # Every frame sent is found, in order (garbage may rarely forge an extra valid frame, never lose one).
     it = iter(got_pairs)
     assert all(any(g == s for g in it) for s in sent), (sent, got_pairs)
+
+
+def _events(stream: bytes, cuts: list[int]) -> list:
+    """Everything a decoder makes of stream fed in pieces, then flushed (the line goes quiet)."""
+    d = pp.FrameDecoder()
+    events, pos = [], 0
+    for n in [*cuts, len(stream)]:
+        events += d.feed(stream[pos:pos + n])
+        pos += n
+    events += d.flush()
+    assert not d.buffer
+    return events
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=300), st.lists(st.integers(1, 40), max_size=8))
+def test_random_bytes_give_only_frames_and_refusals_and_every_byte_is_accounted_for(data, cuts):
+    events = _events(data, cuts)
+    assert all(isinstance(e, (pp.PanelFrame, Rejected)) for e in events)
+    frames = [e for e in events if isinstance(e, pp.PanelFrame)]
+    if data and not frames:
+        assert any(isinstance(e, Rejected) for e in events)  # garbage is never passed over silently
+    for frame in frames:  # whatever a forged frame holds, its records are values or refusals
+        for record in pp.records(frame):
+            assert isinstance(record, (Rejected, tuple))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.lists(st.tuples(st.sampled_from([400, 401, 414, 432, 999]), st.floats(-2, 2, width=32)),
+                         max_size=4), min_size=2, max_size=6),
+       st.data(), st.lists(st.integers(1, 40), max_size=8))
+def test_a_corrupted_frame_is_counted_and_the_frames_around_it_are_decoded(frames, data, cuts):
+    encoded = [pp.encode_frame(seq, recs) for seq, recs in enumerate(frames)]
+    bad = data.draw(st.integers(0, len(encoded) - 1))
+    frame = bytearray(encoded[bad])
+    # Corrupt one byte after the start byte (LEN, SEQ, payload or CRC): the CRC catches it.
+    at = data.draw(st.integers(1, len(frame) - 1))
+    frame[at] ^= data.draw(st.integers(1, 255))
+    stream = b"".join(bytes(frame) if k == bad else f for k, f in enumerate(encoded))
+    events = _events(stream, cuts)
+    got = [(e.seq, e.payload) for e in events if isinstance(e, pp.PanelFrame)]
+    sent = [(k, f[3:-2]) for k, f in enumerate(encoded) if k != bad]
+    it = iter(got)
+    assert all(any(g == s for g in it) for s in sent), (sent, got)
+    assert (bad, encoded[bad][3:-2]) not in got
+    assert any(isinstance(e, Rejected) and e.cause in ("bad_crc", "bad_length", "bad_frame") for e in events)

@@ -6,6 +6,8 @@ import os
 import time
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from host_sim.inputs import open_source
 from host_sim.inputs.base import Controls
@@ -97,3 +99,21 @@ def test_a_panel_on_a_pty():
     finally:
         os.close(master)
         os.close(slave)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(st.tuples(st.binary(max_size=20).filter(lambda b: 0xA5 not in b),
+                          st.floats(-1, 1, width=32)), min_size=1, max_size=6))
+def test_garbage_between_frames_is_counted_and_every_value_arrives(parts):
+    clock = FakeClock()
+    with open_source("serial+loop://", clock=clock) as src:
+        port = src.port  # type: ignore[attr-defined]
+        for seq, (garbage, pitch) in enumerate(parts):
+            port.write(garbage + encode_frame(seq, [(400, pitch)]))
+            assert src.poll() == 1  # the frame behind the garbage, in the same poll
+            assert src.latest().pitch == pitch
+        status = src.status()
+        # Garbage without a start byte is counted once per run of bytes between two frames.
+        assert status.rejected["bad_frame"] == sum(1 for garbage, _ in parts if garbage)
+        assert sum(status.rejected.values()) == status.rejected["bad_frame"]
+        assert status.counters["frames"] == len(parts) and "sequence_gaps" not in status.counters

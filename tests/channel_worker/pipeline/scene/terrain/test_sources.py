@@ -81,6 +81,58 @@ def test_nodata_is_filled_from_the_surroundings_or_refused_with_its_count(tmp_pa
         open_elevation(str(empty))
 
 
+def ascii_grid(path, rows, *, cellsize="10", extra=""):
+    """An ESRI ASCII grid written as text, rows top (north) first."""
+    body = "".join(" ".join(row) + "\n" for row in rows)
+    path.write_text(f"ncols {len(rows[0])}\nnrows {len(rows)}\nxllcorner 0\nyllcorner 0\n"
+                    f"cellsize {cellsize}\n{extra}{body}")
+    return path
+
+
+@pytest.mark.parametrize("cells", [
+    # GDAL reads a grid of whole numbers as integers: nan would be 0, inf the largest float32.
+    [["1", "2", "3"], ["4", "nan", "6"], ["7", "inf", "9"]],
+    [["1.5", "2", "3"], ["4", "NaN", "6"], ["7", "-Infinity", "1e999"]],
+])
+def test_esri_ascii_cells_that_are_not_finite_are_nodata(tmp_path, cells):
+    path = ascii_grid(tmp_path / "odd.asc", cells)
+    bad = sum(1 for row in cells for v in row if v.lower().lstrip("+-")[:3] in ("nan", "inf") or "e999" in v)
+    with pytest.raises(TerrainError) as exc:
+        open_elevation(f"{path}?nodata=refuse")
+    assert str(exc.value).startswith(f"{path}: nodata: {bad} of 9 cells are nodata or not finite, the first "
+                                     f"at row 1, column 1 (from 0, the file's first row and column): {cells[1][1]};")
+    grid = open_elevation(str(path))  # filled from the neighbours, not 0 or 3.4e38
+    assert grid.info["nodata_filled"] == bad
+    assert np.all(grid.values >= 1.0) and np.all(grid.values <= 9.0)
+
+
+def test_geotiff_cells_that_are_not_finite_are_refused_with_the_first_one(tmp_path):
+    values = np.full((4, 5), 42.0, np.float32)
+    values[2, 3] = np.inf
+    values[3, 0] = np.nan
+    path = write_raster(tmp_path / "odd.tif", values, transform=from_origin(0, 4, 1, 1))
+    with pytest.raises(TerrainError, match=r"odd.tif: nodata: 2 of 20 cells are nodata or not finite, the first "
+                                           r"at row 2, column 3 \(.*\): inf;"):
+        open_elevation(f"{path}?nodata=refuse")
+    np.testing.assert_allclose(open_elevation(str(path)).values, 42.0)
+
+
+@pytest.mark.parametrize("header,field,value", [
+    ({"cellsize": "-10"}, "cellsize", "'-10'"), ({"cellsize": "0"}, "cellsize", "'0'"),
+    ({"cellsize": "nan"}, "cellsize", "'nan'"), ({"cellsize": "inf"}, "cellsize", "'inf'"),
+    ({"cellsize": "ten"}, "cellsize", "'ten'"),
+    ({"cellsize": None, "dx": "10", "dy": "-5"}, "dy", "'-5'"),
+])
+def test_a_cell_size_that_is_not_finite_and_positive_is_refused(tmp_path, header, field, value):
+    size = header.pop("cellsize")
+    extra = "".join(f"{k} {v}\n" for k, v in header.items())
+    path = ascii_grid(tmp_path / "g.asc", [["1", "2"], ["3", "4"]], cellsize=size, extra=extra)
+    if size is None:
+        path.write_text(path.read_text().replace("cellsize None\n", ""))
+    with pytest.raises(TerrainError, match=rf"g.asc: {field}: {value} is not a finite cell size > 0"):
+        open_elevation(str(path))
+
+
 def test_bad_raster_sources_are_named(tmp_path):
     rotated = write_raster(tmp_path / "rot.tif", np.zeros((3, 3), np.float32),
                            transform=Affine(1.0, 0.2, 0.0, 0.1, -1.0, 3.0))
