@@ -63,6 +63,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--replay-origin", type=_origin, default=None, metavar="LAT,LON,H",
                         help="geodetic reference point of the world frame for a geodetic log, degrees and "
                              "metres (default: the log's first fix)")
+    parser.add_argument("--report", nargs="?", const="", default=None, metavar="PNG",
+                        help="with --replay: print what the replay makes of the log (records read, used, "
+                             "interpolated, dropped by cause; coverage per column; attitude source per "
+                             "segment; time span; largest gap), plot the replayed track and attitude against "
+                             "the log's own values into PNG (default out/replay/<log name>.png) and exit "
+                             "without serving")
     parser.add_argument("--stale-after", type=positive, default=None, metavar="S",
                         help="flag a control source stale after this many seconds without good input "
                              "(default 0.5; a URL's stale_after= overrides it)")
@@ -76,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
     from services.rig.rigfile import bind_address
 
     configure_logging(args.verbose)
+    if args.report is not None:
+        return _report(args)
     rig = load_rig_or_report(args.rig, "host")
     if rig is None:
         return EXIT_BAD_INPUT
@@ -147,6 +155,32 @@ def _eyepoint_source(args: argparse.Namespace):
 
     scripted = bundled_flight()
     return None, scripted.eyepoint_at, scripted.duration_s
+
+
+def _report(args: argparse.Namespace) -> int:
+    """`--report`: the replay report and its plot; 0 ok, 1 the plot cannot be written, 2 bad input."""
+    from pathlib import Path
+
+    from host_sim.replay import load_track
+    from host_sim.replay.report import format_report, plot_replay, replay_report
+
+    if args.replay is None:
+        error("host", "--report only applies with --replay")
+        return EXIT_BAD_INPUT
+    try:
+        track, fmt = load_track(args.replay, format=args.replay_format, origin=args.replay_origin)
+    except ValueError as exc:
+        error("host", exc)
+        return EXIT_BAD_INPUT
+    print(format_report(replay_report(track, path=args.replay, format=fmt)))
+    png = Path(args.report or Path("out") / "replay" / f"{Path(args.replay).name}.png")
+    try:
+        plot_replay(track, png, title=Path(args.replay).name)
+    except OSError as exc:
+        error("host", f"report plot {png}: {exc}")
+        return EXIT_FAILED
+    print(f"  plot: {png}")
+    return EXIT_OK
 
 
 def _log_summary(eyepoints) -> None:

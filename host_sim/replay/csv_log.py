@@ -5,8 +5,12 @@ A header row names the columns, in any order; `#` starts a comment line:
     time_s, lat_deg, lon_deg, alt_m [, heading_deg, pitch_deg, roll_deg]     geodetic (WGS-84)
     time_s, x_m, y_m, z_m [, heading_deg, pitch_deg, roll_deg]                world frame
 
-Other columns are ignored. A row with a missing, non-numeric or non-finite value, or a latitude
-or longitude out of range, is counted as corrupt and skipped.
+Other columns are ignored. Each column is its own time series: recorders leave a cell empty
+when they did not sample that value, so an empty cell (or `nan`, as numpy writes one) is a
+missing value, filled later by interpolating that column alone (track.build_track). A row
+needs a time: without a readable one it is skipped. A cell that is not a number is counted
+as corrupt, and one outside physics (track.RANGES) as out_of_range; either is refused on its
+own and the rest of its row is kept.
 """
 
 from __future__ import annotations
@@ -15,11 +19,10 @@ import csv
 import math
 from pathlib import Path
 
-from .track import RawLog
+from .track import ATTITUDE, RawLog, out_of_range
 
 GEODETIC = ("lat_deg", "lon_deg", "alt_m")
 WORLD = ("x_m", "y_m", "z_m")
-ATTITUDE = ("heading_deg", "pitch_deg", "roll_deg")
 
 
 def read(path: Path) -> RawLog:
@@ -27,7 +30,8 @@ def read(path: Path) -> RawLog:
 
     Raises:
         ValueError: no header, or a header without time_s and a full position triple, or
-            with only part of the attitude triple (the message names the columns).
+            with only part of the attitude triple, or a position column without any value
+            (the message names the columns).
     """
     raw = RawLog()
     with open(path, newline="", encoding="utf-8", errors="replace") as f:
@@ -49,26 +53,50 @@ def read(path: Path) -> RawLog:
         present = [c in columns for c in ATTITUDE]
         if any(present) and not all(present):
             raise ValueError(f"{path.name}: header has only part of {', '.join(ATTITUDE)}")
-        wanted = ["time_s", *position, *(ATTITUDE if all(present) else ())]
+        values = [*position, *(ATTITUDE if all(present) else ())]
         raw.hpr = [] if all(present) else None
+        raw.columns = ("position", *(ATTITUDE if all(present) else ()))
         for row in rows:
             line = rows.line_num
             if not any(cell.strip() for cell in row):
                 continue
-            try:
-                values = [float(row[columns[c]]) for c in wanted]
-            except (IndexError, ValueError):
-                raw.problem("corrupt", f"line {line}: {','.join(row)[:60]!r}")
+            raw.records_read += 1
+            t = _cell(raw, row, columns["time_s"], "time_s", line)
+            if math.isnan(t):  # refused and counted by _cell, unless missing
+                text = _cell_text(row, columns["time_s"])
+                if text.lower() in ("", "nan"):
+                    raw.problem("corrupt", f"line {line}: time_s = {text!r} (a row needs a time)")
                 continue
-            bad = [c for c, v in zip(wanted, values, strict=True) if not math.isfinite(v)]
-            if raw.geodetic and not bad:
-                bad = [c for c, v, lim in zip(GEODETIC, values[1:4], (90.0, 180.0, None), strict=True)
-                       if lim is not None and abs(v) > lim]
-            if bad:
-                raw.problem("corrupt", f"line {line}: {bad[0]} = {values[wanted.index(bad[0])]}")
-                continue
-            raw.times.append(values[0])
-            raw.coords.append((values[1], values[2], values[3]))
+            cells = [_cell(raw, row, columns[c], c, line) for c in values]
+            if raw.hpr is not None and math.isfinite(cells[3]):
+                cells[3] %= 360.0
+            raw.times.append(t)
+            raw.lines.append(line)
+            raw.coords.append((cells[0], cells[1], cells[2]))
             if raw.hpr is not None:
-                raw.hpr.append((values[4], values[5], values[6]))
+                raw.hpr.append((cells[3], cells[4], cells[5]))
+    for j, c in enumerate(position):
+        if raw.times and not any(math.isfinite(p[j]) for p in raw.coords):
+            raise ValueError(f"{path.name}: column {c} has no value in any row")
     return raw
+
+
+def _cell_text(row: list[str], i: int) -> str:
+    return row[i].strip() if i < len(row) else ""  # a short row: its last cells are empty
+
+
+def _cell(raw: RawLog, row: list[str], i: int, name: str, line: int) -> float:
+    """The value of a cell, or NaN when it is empty or refused (counted, with its line)."""
+    text = _cell_text(row, i)
+    if text == "" or text.lower() == "nan":
+        return math.nan
+    try:
+        v = float(text)
+    except ValueError:
+        raw.problem("corrupt", f"line {line}: {name} = {text[:30]!r} is not a number")
+        return math.nan
+    why = out_of_range(name, v)
+    if why is not None:
+        raw.problem("out_of_range", f"line {line}: {why}")
+        return math.nan
+    return v

@@ -7,20 +7,23 @@ The file starts with `A` or `I` (line endings) and a version line; then keyword 
           pitch deg, roll deg, heading deg true, ... (further columns ignored)
 
 Longitude comes before latitude. Heights are feet above mean sea level (converted to metres).
-A DATA line with fewer than 12 values, a value that is not a finite number, or a latitude or
-longitude out of range is counted as corrupt and skipped.
+A DATA line with fewer than 12 values or a value that is not a number is counted as corrupt
+and skipped; one with a value outside physics (track.RANGES: a time beyond 1e10 s, a pitch of
+95 degrees, a latitude beyond 90) as out_of_range, naming the field. FDR samples are whole
+records written at once, so one impossible value condemns the line.
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
-from .track import RawLog
+from .track import RawLog, out_of_range
 
 FT_M = 0.3048
 #: Columns read from a DATA line (after the keyword): time, lon, lat, h msl, pitch, roll, heading.
 TIME, LON, LAT, MSL, PITCH, ROLL, HEADING = 0, 2, 3, 4, 9, 10, 11
+#: The fields of those columns, as track.RANGES names them (heights checked in metres).
+_FIELDS = ("time_s", "lon_deg", "lat_deg", "alt_m", "pitch_deg", "roll_deg", "heading_deg")
 
 
 def read(path: Path) -> RawLog:
@@ -32,6 +35,7 @@ def read(path: Path) -> RawLog:
             fields = [c.strip() for c in line.split(",")]
             if fields[0].upper() != "DATA":
                 continue
+            raw.records_read += 1
             values = [c for c in fields[1:] if c != ""]
             try:
                 cols = [float(values[i]) for i in (TIME, LON, LAT, MSL, PITCH, ROLL, HEADING)]
@@ -39,10 +43,13 @@ def read(path: Path) -> RawLog:
                 raw.problem("corrupt", f"line {line_no}: {line.strip()[:60]!r}")
                 continue
             t, lon, lat, msl, pitch, roll, heading = cols
-            if not all(math.isfinite(v) for v in cols) or abs(lat) > 90.0 or abs(lon) > 180.0:
-                raw.problem("corrupt", f"line {line_no}: impossible value in {line.strip()[:60]!r}")
+            cols[3] = msl = msl * FT_M
+            why = next((w for w in map(out_of_range, _FIELDS, cols) if w is not None), None)
+            if why is not None:
+                raw.problem("out_of_range", f"line {line_no}: {why}")
                 continue
             raw.times.append(t)
-            raw.coords.append((lat, lon, msl * FT_M))
-            hpr.append((heading, pitch, roll))
+            raw.lines.append(line_no)
+            raw.coords.append((lat, lon, msl))
+            hpr.append((heading % 360.0, pitch, roll))
     return raw

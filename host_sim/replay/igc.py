@@ -8,8 +8,12 @@ ellipsoid). Extensions declared by an I record follow and are ignored.
 
 Heights are the GNSS altitude when any valid fix has one, else the pressure altitude (some
 loggers write 00000 for GNSS). V records are counted (`no_fix`) and skipped. A time that goes
-back by more than 12 hours is the flight crossing midnight UTC. IGC has no attitude: it is
-estimated from the track (attitude.estimate).
+back by more than 12 hours is the flight crossing midnight UTC when the next fix goes back as
+well; a single fix half a day off is a misdated one and moves no other fix (track.py judges
+it). IGC has no attitude: it is
+estimated from the track (attitude.estimate). A fix whose latitude, longitude or chosen height
+is outside physics (track.RANGES: latitude 90 degrees 30 minutes, a height of 99999 m) is
+counted as out_of_range and skipped.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from .track import RawLog
+from .track import RawLog, out_of_range
 
 B_RECORD = re.compile(r"B(\d{2})(\d{2})(\d{2})(\d{2})(\d{5})([NS])(\d{3})(\d{5})([EW])([AV])([-\d]\d{4})([-\d]\d{4})")
 
@@ -25,13 +29,12 @@ B_RECORD = re.compile(r"B(\d{2})(\d{2})(\d{2})(\d{2})(\d{5})([NS])(\d{3})(\d{5})
 def read(path: Path) -> RawLog:
     """The fixes of an IGC file."""
     raw = RawLog()
-    fixes = []  # (line, time, lat, lon, pressure alt, gnss alt)
-    day = 0.0
-    last = None
+    fixes = []  # (line, time of day, lat, lon, pressure alt, gnss alt)
     with open(path, encoding="ascii", errors="replace") as f:
         for line_no, line in enumerate(f, start=1):
             if not line.startswith("B"):
                 continue
+            raw.records_read += 1
             m = B_RECORD.match(line)
             if m is None:
                 raw.problem("corrupt", f"line {line_no}: {line.strip()[:40]!r}")
@@ -44,16 +47,59 @@ def read(path: Path) -> RawLog:
             if valid == "V":
                 raw.problem("no_fix", f"line {line_no}: fix marked V (no valid position)")
                 continue
-            t = int(hh) * 3600 + int(mm) * 60 + int(ss) + day
-            if last is not None and t < last - 12 * 3600:
-                day += 86400.0  # past midnight UTC
-                t += 86400.0
-            last = t
+            t = float(int(hh) * 3600 + int(mm) * 60 + int(ss))
             lat = (int(lat_d) + int(lat_m) / 60000.0) * (1 if ns == "N" else -1)
             lon = (int(lon_d) + int(lon_m) / 60000.0) * (1 if ew == "E" else -1)
-            fixes.append((t, lat, lon, float(p_alt), float(g_alt)))
+            why = out_of_range("lat_deg", lat) or out_of_range("lon_deg", lon)
+            if why is not None:
+                raw.problem("out_of_range", f"line {line_no}: {why}")
+                continue
+            fixes.append((line_no, t, lat, lon, float(p_alt), float(g_alt)))
     use_gnss = any(g != 0.0 for *_, g in fixes)
-    for t, lat, lon, p_alt, g_alt in fixes:
+    days = _days([f[1] for f in fixes])
+    for (line_no, t, lat, lon, p_alt, g_alt), day in zip(fixes, days, strict=True):
+        t += day
+        h = g_alt if use_gnss else p_alt
+        why = out_of_range("alt_m", h)
+        if why is not None:
+            raw.problem("out_of_range", f"line {line_no}: {why}")
+            continue
         raw.times.append(t)
-        raw.coords.append((lat, lon, g_alt if use_gnss else p_alt))
+        raw.lines.append(line_no)
+        raw.coords.append((lat, lon, h))
     return raw
+
+
+#: Longest time without fixes across midnight UTC that still counts as a midnight crossing,
+#: seconds: a logger records every few seconds while it flies.
+MIDNIGHT_GAP_S = 2 * 3600.0
+
+
+def _days(sod: list[float]) -> list[float]:
+    """Seconds to add to each fix's time of day: a day more after each midnight UTC.
+
+    A fix more than 12 hours before (after) the last accepted one crosses midnight (is a
+    fix of the same day) only if the next fix agrees, and (crossing) lands within
+    MIDNIGHT_GAP_S after it; otherwise it is misdated and keeps its time without moving the day
+    of the fixes after it.
+    """
+    half = 12 * 3600.0
+    out, day, last = [], 0.0, None
+    for k, s in enumerate(sod):
+        t = s + day
+        nxt = sod[k + 1] + day if k + 1 < len(sod) else None
+        if last is not None and t < last - half:
+            # Past midnight only if the day's last fix was late enough for this one to follow
+            # it within MIDNIGHT_GAP_S (two garbage fixes at 00:00:00 after a fix at noon agree
+            # with each other, but no flight's record jumps twelve hours).
+            if nxt is None or not nxt < last - half or t + 86400.0 - last > MIDNIGHT_GAP_S:
+                out.append(day)  # misdated
+                continue
+            day += 86400.0  # past midnight UTC
+            t += 86400.0
+        elif last is not None and t > last + half and (nxt is None or not nxt > last + half):
+            out.append(day)
+            continue
+        last = t
+        out.append(day)
+    return out

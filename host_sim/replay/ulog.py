@@ -8,6 +8,8 @@ position times; without it the attitude is estimated from the track. Times are t
 microsecond timestamps.
 
 pyulog skips damaged messages itself and flags the file; a flagged file counts one `corrupt`.
+A position with a time or value outside physics (track.RANGES) is counted as out_of_range
+and skipped, naming the field and the position's number in its topic.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from . import attitude
-from .track import RawLog
+from .track import RANGES, RawLog, out_of_range
 
 TOPICS = ["vehicle_global_position", "sensor_gps", "vehicle_gps_position", "vehicle_attitude"]
 
@@ -39,15 +41,24 @@ def read(path: Path) -> RawLog:
     raw = RawLog()
     if ulog.file_corruption:
         raw.problem("corrupt", "pyulog found damaged messages and skipped them")
-    t, lat, lon, alt = _positions(data, path)
-    keep = np.isfinite(lat) & np.isfinite(lon) & np.isfinite(alt) & (np.abs(lat) <= 90) & (np.abs(lon) <= 180)
-    for i in np.flatnonzero(~keep):
-        raw.problem("corrupt", f"position {i + 1}: lat {lat[i]}, lon {lon[i]}, alt {alt[i]}")
+    try:
+        t, lat, lon, alt = _positions(data, path)
+    except KeyError as exc:  # a damaged format definition names other fields
+        raise ValueError(f"{path.name}: the position topic has no field {exc}") from exc
+    raw.records_read = len(t)
+    keep = np.ones(len(t), bool)
+    for name, v in (("time_s", t), ("lat_deg", lat), ("lon_deg", lon), ("alt_m", alt)):
+        lo, hi = RANGES[name]
+        for i in np.flatnonzero(keep & ~((v >= lo) & (v <= hi))):  # NaN fails too
+            raw.problem("out_of_range", f"position {i + 1}: {out_of_range(name, float(v[i]))}")
+            keep[i] = False
+    raw.lines, raw.numbered = [int(i) + 1 for i in np.flatnonzero(keep)], "position"
     t, lat, lon, alt = t[keep], lat[keep], lon[keep], alt[keep]
-    raw.times = list(t)
-    raw.coords = list(zip(lat, lon, alt, strict=True))
+    raw.times = [float(v) for v in t]
+    raw.coords = [(float(a), float(b), float(c)) for a, b, c in zip(lat, lon, alt, strict=True)]
     att = data.get("vehicle_attitude")
-    if att is not None and len(att["timestamp"]) >= 1:
+    if att is not None and all(k in att for k in ("timestamp", "q[0]", "q[1]", "q[2]", "q[3]")) \
+            and len(att["timestamp"]) >= 1:
         at = att["timestamp"].astype(np.float64) * 1e-6
         q = np.stack([att[f"q[{k}]"] for k in range(4)], axis=-1).astype(np.float64)
         good = np.isfinite(q).all(axis=1) & (np.linalg.norm(q, axis=1) > 0.5)

@@ -87,3 +87,38 @@ def geodetic_of_enu(east_m: np.ndarray, north_m: np.ndarray, up_m: np.ndarray,
                                          np.asarray(up_m, np.float64)), axis=-1)
     o = ecef(np.array(origin[0]), np.array(origin[1]), np.array(origin[2]))
     return geodetic_of_ecef(local @ _enu_rotation(origin) + o)
+
+
+def enu_rotation(lat_deg: np.ndarray, lon_deg: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotations from ECEF to the east-north-up frame at each geodetic position.
+
+    The rows are the east, north and up unit vectors at (lat, lon) in ECEF, so `R @ v` gives
+    the east, north, up components of an ECEF vector v and `R.T @ w` takes local ENU back to
+    ECEF. Up is the ellipsoid normal, whose elevation is the geodetic latitude; the height
+    does not change the directions.
+
+    Args:
+        lat_deg, lon_deg: WGS-84 latitude and longitude, degrees (any broadcastable shapes).
+    """
+    lat, lon = np.broadcast_arrays(np.radians(np.asarray(lat_deg, np.float64)),
+                                   np.radians(np.asarray(lon_deg, np.float64)))
+    sl, cl, sp, cp = np.sin(lon), np.cos(lon), np.sin(lat), np.cos(lat)
+    return np.stack([np.stack([-sl, cl, np.zeros_like(sl)], axis=-1),
+                     np.stack([-sp * cl, -sp * sl, cp], axis=-1),
+                     np.stack([cp * cl, cp * sl, sp], axis=-1)], axis=-2)
+
+
+def vertical_angle_deg(lat_deg: np.ndarray, lon_deg: np.ndarray, origin: tuple[float, float, float]) -> np.ndarray:
+    """Angle, degrees, between the local vertical (ellipsoid normal) at each position and at origin.
+
+    This is how far an attitude measured against the local horizontal at the position is tilted
+    in the world frame of origin: about 1 degree per 111 km (5.4 degrees at 600 km).
+    atan2(|a x b|, a . b) rather than acos(a . b), which loses all precision near 0.
+
+    Args:
+        lat_deg, lon_deg: WGS-84 latitude and longitude of the positions, degrees.
+        origin: the reference point (latitude deg, longitude deg, height m).
+    """
+    up = enu_rotation(lat_deg, lon_deg)[..., 2, :]
+    up0 = enu_rotation(np.array(origin[0]), np.array(origin[1]))[2]
+    return np.degrees(np.arctan2(np.linalg.norm(np.cross(up, up0), axis=-1), up @ up0))

@@ -103,3 +103,19 @@ def write_ulog(path: Path, rows, *, attitude: bool = True, damage: bool = False)
             out += _msg("D", struct.pack("<H", 1) + b"\x01\x02")  # a data message cut short
     path.write_bytes(bytes(out))
     return path
+
+
+def straight(n: int = 300, speed_mps: float = 60.0):
+    """(t, lat, lon, h, heading, pitch, roll) of a level flight due east, one record a second:
+    long and fast enough for a misdated record to land kilometres away."""
+    return [(float(k), ORIGIN[0], ORIGIN[1] + speed_mps * k / (111_320.0 * math.cos(math.radians(ORIGIN[0]))),
+             ORIGIN[2] + 300.0, 90.0, 1.0, 0.0) for k in range(n)]
+
+
+def csv_cells(rows, blanks=()):
+    """CSV data lines of rows (t, lat, lon, h, heading, pitch, roll), with the cells of the
+    (row index, column index) pairs in blanks left empty."""
+    out = []
+    for i, r in enumerate(rows):
+        out.append(",".join("" if (i, j) in blanks else f"{v:.9f}" for j, v in enumerate(r)))
+    return out

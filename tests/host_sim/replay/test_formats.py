@@ -62,12 +62,17 @@ def test_world_frame_csv_is_used_as_is(tmp_path):
 
 
 def test_csv_with_damaged_rows(tmp_path):
+    # Lines 6-10 of the file: a row with attitude only, no time, refused cells, blank, comment.
     path = write_csv(tmp_path / "f.csv", ROWS, extra_lines=[
-        (5, "3.5,46.5,nan,700"), (6, "not,a,row"), (7, "4.5,95.0,7.0,700,0,0,0"), (8, ""),
+        (5, "3.5,,,,340.5,2,-17"), (6, "not,a,row"), (7, "4.5,95.0,,,,95,-17"), (8, ""),
         (9, "# a comment in the middle")])
     track, _ = load_track(path)
-    assert track.problems["corrupt"] == 3 and len(track.t_s) == len(ROWS)
-    assert any("line 6:" in n for n in track.notes)  # rows are named by their line in the file
+    assert track.problems["corrupt"] == 1 and track.problems["out_of_range"] == 2
+    assert len(track.t_s) == len(ROWS) + 2  # the rows at 3.5 and 4.5 s are kept for their attitude
+    assert any("line 7: time_s = 'not' is not a number" in n for n in track.notes)
+    assert any("line 8: lat_deg = 95 outside [-90, 90]" in n for n in track.notes)
+    assert any("line 8: pitch_deg = 95 outside [-90, 90]" in n for n in track.notes)
+    assert track.records_read == len(ROWS) + 3
 
 
 def test_csv_header_problems_are_named(tmp_path):
@@ -108,7 +113,8 @@ def test_fdr_damaged_lines(tmp_path):
                                                       (17, "DATA,2.5,15,200.0,46.5,1000,0,0,0,0,0,0,0"),
                                                       (18, "COMM,comments are skipped")])
     track, _ = load_track(path)
-    assert track.problems["corrupt"] == 3 and len(track.t_s) == len(ROWS)
+    assert track.problems["corrupt"] == 2 and track.problems["out_of_range"] == 1 and len(track.t_s) == len(ROWS)
+    assert any("line 18: lon_deg = 200 outside [-180, 180]" in n for n in track.notes)
 
 
 def test_ulog_damage_and_missing_attitude(tmp_path):
