@@ -284,3 +284,31 @@ def test_any_text_is_a_log_or_a_clear_error(tmp_path, suffix, text):
         assert "has no usable CANaerospace control frame" in str(exc)
     else:  # pragma: no cover - random text holding a valid control frame
         replay_all(src)
+
+
+@pytest.fixture(scope="module")
+def written_blf(tmp_path_factory):
+    return write_log(tmp_path_factory.mktemp("blf") / "good.blf", RECORDED * 400).read_bytes()
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_a_damaged_blf_is_replayed_up_to_the_damage_or_refused_clearly(tmp_path, written_blf, data):
+    # Bytes overwritten anywhere (headers, compressed containers) or the file cut short: the
+    # frames before the damage are replayed and the damage counted once, or the log is refused
+    # with a clear message when nothing usable comes before it; never another exception.
+    blf = bytearray(written_blf)
+    for at, value in data.draw(st.lists(st.tuples(st.integers(0, len(blf) - 1), st.integers(0, 255)),
+                                        max_size=6)):
+        blf[at] = value
+    cut = data.draw(st.integers(1, len(blf)))
+    path = tmp_path / "d.blf"
+    path.write_bytes(bytes(blf[:cut]))
+    try:
+        src = open_source(f"canlog://{path}")
+    except ValueError as exc:
+        assert "has no usable CANaerospace control frame" in str(exc)
+        return
+    status, refused = replay_all(src)
+    assert status.accepted + sum(refused.values()) >= 1
+    assert status.accepted <= len(RECORDED) * 400
