@@ -17,12 +17,24 @@ from __future__ import annotations
 
 import csv
 import math
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from .track import ATTITUDE, RawLog, out_of_range
 
 GEODETIC = ("lat_deg", "lon_deg", "alt_m")
 WORLD = ("x_m", "y_m", "z_m")
+
+
+def _rows(f: Iterable[str]) -> Iterator[tuple[int, list[str]]]:
+    """(line number, cells) of every line of f, comment lines as no cells. Each line is parsed
+    on its own: a stray quote (a damaged cell) would otherwise open a quoted field that
+    swallows every line after it (a flight log has no field that spans lines)."""
+    for number, line in enumerate(f, start=1):
+        if line.lstrip().startswith("#"):
+            yield number, []
+        else:
+            yield number, next(csv.reader([line]), [])
 
 
 def read(path: Path) -> RawLog:
@@ -35,9 +47,8 @@ def read(path: Path) -> RawLog:
     """
     raw = RawLog()
     with open(path, newline="", encoding="utf-8", errors="replace") as f:
-        # Comment lines become empty rows, so that line_num stays the file's line number.
-        rows = csv.reader("\n" if line.lstrip().startswith("#") else line for line in f)
-        header = next((row for row in rows if row), None)
+        rows = _rows(f)
+        header = next((row for _, row in rows if row), None)
         if header is None:
             raise ValueError(f"{path.name}: empty CSV log (expected a header row)")
         columns = {name.strip(): i for i, name in enumerate(header)}
@@ -56,8 +67,7 @@ def read(path: Path) -> RawLog:
         values = [*position, *(ATTITUDE if all(present) else ())]
         raw.hpr = [] if all(present) else None
         raw.columns = ("position", *(ATTITUDE if all(present) else ()))
-        for row in rows:
-            line = rows.line_num
+        for line, row in rows:
             if not any(cell.strip() for cell in row):
                 continue
             raw.records_read += 1

@@ -37,12 +37,21 @@ PROBLEMS = (
     "duplicate",          # a second record at the time of another (the one that fits its
                           # neighbours' motion is kept)
     "impossible_motion",  # a record the aircraft cannot have flown to and from (misdated): dropped
+    "misdated",           # a record out of time order whose time is a gap away from the records
+                          # around it in the file (a date or week rollover, a clock step): dropped
     "out_of_order",       # a record with a time before an earlier record's (sorted into place)
     "gap",                # an interval longer than the gap threshold (bridged by a straight line)
 )
 #: An interval is a gap when longer than GAP_FACTOR x the median interval and GAP_MIN_S.
 GAP_FACTOR = 5.0
 GAP_MIN_S = 1.0
+#: Longest run of consecutive records in the file judged as misdated; a longer one is a block
+#: of the log written out of order (logs concatenated in the wrong order).
+MISDATED_RUN = 2
+#: Records around a record (itself included) whose median time it is judged against.
+MISDATED_WINDOW = 11
+#: Records at either end of the file not judged by their time (too narrow a window).
+MISDATED_EDGE = 2
 #: Problems named in the report (the counters keep counting past them).
 _NOTED = 10
 
@@ -257,6 +266,12 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
     finite = np.isfinite(times)
     for i in np.flatnonzero(~finite):
         problem("corrupt", f"{label(i)}: time_s = {times[i]} is not finite")
+    # Misdated records, judged among the records with some position: a row of nothing but a
+    # time says nothing about where it belongs (it is counted as no_position below).
+    for m in _misdated(times, np.flatnonzero(finite & np.isfinite(coords).any(axis=1))):
+        finite[m] = False
+        problem("misdated", f"{label(m)} at t={times[m]:.3f} s lies a gap away from the records around "
+                            f"it in the file (a date rollover or a clock step)")
     # Out of order: the records outside the longest run in time order (in file order), the
     # fewest that put the file in order when moved: one misdated record counts once, not
     # with every record it is ahead of.
@@ -336,6 +351,60 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
         if a is not None:
             a.setflags(write=False)
     return track
+
+
+def _misdated(times: np.ndarray, idx: np.ndarray) -> list[int]:
+    """Records (indices into times, among idx: records with finite times, in file order) out
+    of time order in the file (_out_of_order) whose time is also far from the median time of
+    the MISDATED_WINDOW records around them in the file, in runs of at most MISDATED_RUN
+    consecutive records.
+
+    Such a record sits where its position belongs (between its file neighbours) under a wrong
+    time: sorted by time it would land far from them, often beyond the log's end where no
+    speed is impossible over the long interval, and stretch the replay by the error. The
+    window is centred on the record (narrower near either end of the file, so that it stays
+    centred), and the median of a centred window of a file in time order is the record itself,
+    whatever pauses the logger made: a log in order never has a misdated record, and a few
+    wrong times in a window do not move the median of the rest far. Far means more than the
+    gap threshold plus half a window of median intervals (what the wrong times can move the
+    median by). The first and last MISDATED_EDGE records have too narrow a window to be judged
+    so (a window of three holds as many wrong times as right ones); the motion check still
+    judges them by their positions. A longer
+    run of far records is a block of the log written out of order (logs concatenated in the
+    wrong order): it is only sorted.
+    """
+    t = times[idx]
+    n = len(t)
+    if n < 3:
+        return []
+    step = float(np.median(np.abs(np.diff(t))))
+    half = MISDATED_WINDOW // 2
+    tolerance = max(GAP_FACTOR * step, GAP_MIN_S) + half * step
+    padded = np.concatenate([np.full(half, np.nan), t, np.full(half, np.nan)])
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1).copy()
+    # Near the ends keep the window centred: cut as many records off its far side as the
+    # file lacks on the near side.
+    reach = np.minimum(np.arange(n), np.arange(n)[::-1])
+    for j in np.flatnonzero(reach < half):
+        windows[j, : half - reach[j]] = np.nan
+        windows[j, half + reach[j] + 1:] = np.nan
+    centre = np.nanmedian(windows, axis=1)
+    late = np.zeros(n, bool)
+    late[_out_of_order(t)] = True
+    far = (np.abs(t - centre) > tolerance) & (reach >= MISDATED_EDGE) & late
+    out: list[int] = []
+    k = 0
+    while k < n:
+        if not far[k]:
+            k += 1
+            continue
+        end = k
+        while end < n and far[end]:
+            end += 1
+        if end - k <= MISDATED_RUN:
+            out += [int(i) for i in idx[k:end]]
+        k = end
+    return out
 
 
 def _out_of_order(t: np.ndarray) -> np.ndarray:

@@ -143,10 +143,11 @@ def test_a_clock_step_record_is_dropped_and_the_eye_never_jumps(tmp_path):
     k = 250
     rows[k] = (50.5, *rows[k][1:])  # the fix of 250 s stamped 50.5 s: 12 km from its neighbours
     track, _ = load_track(write_lines(tmp_path / "f.csv", csv_cells(rows)))
-    assert track.problems["impossible_motion"] == 1 and len(track.t_s) == 299
+    assert track.problems["misdated"] == 1 and len(track.t_s) == 299
+    assert track.problems["out_of_order"] == 0 and track.problems["impossible_motion"] == 0
     assert 50.5 not in track.t_s
-    note = next(n for n in track.notes if n.startswith("impossible_motion"))
-    assert f"line {k + 2}: t=50.500 s implies" in note and "m/s" in note
+    note = next(n for n in track.notes if n.startswith("misdated"))
+    assert f"line {k + 2} at t=50.500 s lies a gap away" in note
     # the eye moves no further in a frame than the aircraft flies (60 m/s), well under the limit
     assert largest_frame_step(track) <= 1.01 * 60.0 / FRAME_HZ < MAX_SPEED_MPS / FRAME_HZ
 
@@ -156,11 +157,43 @@ def test_a_misdated_igc_fix_that_is_first_of_a_duplicate_is_the_one_dropped(tmp_
     bad = rows[50]
     rows[50] = (150.0, *bad[1:])  # written where the fix of 50 s belongs, stamped 150 s
     track, _ = load_track(write_igc(tmp_path / "f.igc", rows), origin=ORIGIN)
-    assert track.problems["duplicate"] == 1 and len(track.t_s) == 299
+    # Its time is a gap away from the fixes around it in the file: misdated, before it can be
+    # taken for a duplicate of the good fix of 150 s.
+    assert track.problems["misdated"] == 1 and track.problems["duplicate"] == 0 and len(track.t_s) == 299
     np.testing.assert_allclose(track.sample(150.0).position, enu(straight()[150]), atol=3.0)
     assert largest_frame_step(track) <= 1.2 * 60.0 / FRAME_HZ
-    note = next(n for n in track.notes if n.startswith("duplicate"))
-    assert "line 55:" in note and "kept line 155" in note  # 4 header lines before the fixes
+    note = next(n for n in track.notes if n.startswith("misdated"))
+    assert "line 55 at t=" in note  # 4 header lines before the fixes
+
+
+def test_a_duplicate_time_keeps_the_record_that_fits_its_neighbours(tmp_path):
+    rows = straight()
+    # A second record at 150 s, 3 km off the line (a glitch of the receiver, not a wrong time),
+    # written first: the good one after it is kept.
+    glitch = (150.0, rows[150][1] + 0.03, *rows[150][2:])
+    lines = csv_cells(rows)
+    lines.insert(150, csv_cells([glitch])[0])
+    track, _ = load_track(write_lines(tmp_path / "f.csv", lines), origin=ORIGIN)
+    assert track.problems["duplicate"] == 1 and len(track.t_s) == 300
+    np.testing.assert_allclose(track.sample(150.0).position, enu(straight()[150]), atol=3.0)
+
+
+def test_a_date_rollover_beyond_the_end_of_the_log_does_not_stretch_the_replay(tmp_path):
+    rows = straight(60)
+    rows[30] = (30.0 + 23 * 86400.0, *rows[30][1:])  # the date rolled over: 23 days late
+    track, _ = load_track(write_lines(tmp_path / "f.csv", csv_cells(rows)))
+    assert track.problems["misdated"] == 1 and len(track.t_s) == 59
+    assert track.duration_s == 59.0 and track.problems["gap"] == 0
+
+
+def test_a_real_pause_and_a_log_written_out_of_order_lose_nothing(tmp_path):
+    rows = straight(60)
+    paused = [(t + (3600.0 if t >= 30 else 0.0), *r) for t, *r in rows]  # an hour's pause
+    track, _ = load_track(write_lines(tmp_path / "p.csv", csv_cells(paused)))
+    assert track.problems["misdated"] == 0 and len(track.t_s) == 60 and track.problems["gap"] == 1
+    swapped = paused[30:] + paused[:30]  # two parts of a log concatenated the wrong way round
+    track, _ = load_track(write_lines(tmp_path / "s.csv", csv_cells(swapped)))
+    assert track.problems["misdated"] == 0 and len(track.t_s) == 60 and track.problems["out_of_order"] == 30
 
 
 def test_the_duplicate_that_fits_the_neighbours_is_kept_wherever_it_is_in_the_file():
