@@ -167,6 +167,9 @@ def _report(args: argparse.Namespace) -> int:
     if args.replay is None:
         error("host", "--report only applies with --replay")
         return EXIT_BAD_INPUT
+    if not args.verbose:
+        # The report lists the problems itself; the log would say each twice.
+        logging.getLogger("ig.host.replay").setLevel(logging.ERROR)
     try:
         track, fmt = load_track(args.replay, format=args.replay_format, origin=args.replay_origin)
     except ValueError as exc:

@@ -18,8 +18,20 @@ import numpy as np
 from services.rig import geodetic
 
 G_MPS2 = 9.80665
-#: Below this horizontal speed the track says nothing about heading (a parked glider, a
-#: hovering drone): the estimate holds the last heading and levels pitch and bank, m/s.
+#: Horizontal GNSS noise the heading must ignore: the standard deviation of a fix in east and in
+#: north, metres. Consumer receivers and flight loggers give 1-3 m; 3 m is a poor sky view.
+GNSS_NOISE_M = 3.0
+#: The track gives the heading only where the window's displacement (between the mean positions
+#: of its halves, MOTION_WINDOW_S) is at least this, metres, and its speed at least
+#: MIN_TRACK_SPEED_MPS; elsewhere the heading holds its last value and pitch and bank are 0 (a
+#: parked or creeping glider, a hovering drone). At 1 Hz each half has 4 fixes, so the
+#: displacement of a still aircraft has noise 0.61 GNSS_NOISE_M = 1.8 m in each axis: 10 m is 5.4
+#: times that, exceeded with probability exp(-5.4^2 / 2) = 4e-7 per record, where a speed
+#: threshold of 1 m/s (3 m over the window) was exceeded every few records at 1.5 m of noise and
+#: spun the heading. A taxi (5 m/s and up: 15 m) passes it; a creep below about 3.3 m/s holds.
+MOVING_DISPLACEMENT_M = 10.0
+#: The speed floor, m/s: sparse logs (fixes 10 s or more apart) cover MOVING_DISPLACEMENT_M by
+#: slow drift of the fixes, which this keeps from turning the heading.
 MIN_TRACK_SPEED_MPS = 1.0
 #: Largest estimated bank, degrees (noise in a slow turn must not roll the picture over).
 MAX_BANK_DEG = 60.0
@@ -54,6 +66,10 @@ GROUND_WINDOW_S = 60.0
 #: or stops applying and against a glitch that the windows do not average away.
 MAX_PITCH_RATE_DPS = 10.0
 MAX_BANK_RATE_DPS = 30.0
+#: Estimated heading turns no faster than this, degrees per second: above any aircraft's turn
+#: that the track can show (a 60-degree-bank turn at 50 m/s is 20 deg/s, a taxiing aircraft turns
+#: at most 20-30 deg/s), so that a glitch or the noise of a slow track cannot spin the picture.
+MAX_HEADING_RATE_DPS = 30.0
 
 
 def _axis_quat(axis: int, angle_rad: np.ndarray) -> np.ndarray:
@@ -205,8 +221,11 @@ def assumptions() -> list[str]:
         "(no wind, no sideslip) and pitch is the flight-path angle (no angle of attack).",
         f"Heading, speed and turn rate are taken over {MOTION_WINDOW_S:g} s: the direction between the mean "
         f"positions of the window's two halves, and the change of heading between them.",
-        f"Below {MIN_TRACK_SPEED_MPS:g} m/s over the ground the heading holds its last value (before the first "
-        f"movement: the first moving heading), and pitch and bank are 0.",
+        f"The aircraft is moving where the window's displacement is at least {MOVING_DISPLACEMENT_M:g} m and its "
+        f"speed at least {MIN_TRACK_SPEED_MPS:g} m/s, well beyond what GNSS noise of {GNSS_NOISE_M:g} m per fix "
+        f"makes of a still aircraft. Elsewhere (parked, or creeping slower than about "
+        f"{MOVING_DISPLACEMENT_M / (MOTION_WINDOW_S / 2.0):.1f} m/s at 1 Hz) the heading holds its last value "
+        f"(before the first movement: the first moving heading), and pitch and bank are 0.",
         f"Pitch is the rise between the mean heights of the two halves of a window at least {PITCH_WINDOW_M:g} m "
         f"of path and {PITCH_WINDOW_S:g} s long, so that GNSS height noise of a few metres moves it by well under a "
         f"degree; it therefore lags and smooths real pitch changes over that window.",
@@ -220,7 +239,9 @@ def assumptions() -> list[str]:
         f"Bank is that of a coordinated turn, atan(speed x turn rate / g), g = {G_MPS2} m/s^2 (no wind, no "
         f"slip).",
         f"Pitch is limited to +-{MAX_PITCH_DEG:g} deg and bank to +-{MAX_BANK_DEG:g} deg; they change by at most "
-        f"{MAX_PITCH_RATE_DPS:g} and {MAX_BANK_RATE_DPS:g} deg/s.",
+        f"{MAX_PITCH_RATE_DPS:g} and {MAX_BANK_RATE_DPS:g} deg/s. Heading turns by at most "
+        f"{MAX_HEADING_RATE_DPS:g} deg/s (faster than an aircraft turns on the ground or in a 60-degree-bank "
+        f"turn at 50 m/s); the turn rate behind the bank is that of this limited heading.",
     ]
 
 
@@ -271,8 +292,9 @@ def estimate_with_report(t_s: np.ndarray, position: np.ndarray) -> AttitudeEstim
     d = second - first
     # lo < i or i < hi whenever n >= 2 (_window), and times increase: d_t > 0, no 0 / 0.
     d_t = d[:, 0]
-    ground_speed = np.hypot(d[:, 1], d[:, 2]) / d_t
-    moving = ground_speed >= MIN_TRACK_SPEED_MPS
+    displacement = np.hypot(d[:, 1], d[:, 2])
+    ground_speed = displacement / d_t
+    moving = (displacement >= MOVING_DISPLACEMENT_M) & (ground_speed >= MIN_TRACK_SPEED_MPS)
     track = np.degrees(np.arctan2(d[:, 1], d[:, 2]))
     if moving.any():
         last = np.where(moving, idx, -1)
@@ -281,7 +303,9 @@ def estimate_with_report(t_s: np.ndarray, position: np.ndarray) -> AttitudeEstim
         track = track[last]
     else:
         track = np.zeros(n)
-    unwrapped = np.degrees(np.unwrap(np.radians(track)))
+    # Limited before the turn rate is taken, so that the bank is that of the heading shown.
+    unwrapped = _rate_limited(t, np.degrees(np.unwrap(np.radians(track))), MAX_HEADING_RATE_DPS,
+                              np.zeros(n, bool))
     h_first, h_second = _half_means(_prefix(unwrapped[:, None]), lo, idx, hi)
     turn_rate = np.radians(h_second[:, 0] - h_first[:, 0]) / d_t
     # Along the path rather than between the half means: a chord cuts a tight turn short.
@@ -307,7 +331,7 @@ def estimate_with_report(t_s: np.ndarray, position: np.ndarray) -> AttitudeEstim
     level = on_ground | ~moving
     pitch = _rate_limited(t, np.where(level | too_slow, 0.0, pitch), MAX_PITCH_RATE_DPS, on_ground)
     bank = _rate_limited(t, np.where(level, 0.0, bank), MAX_BANK_RATE_DPS, on_ground)
-    heading = track % 360.0
+    heading = unwrapped % 360.0
     heading = np.where(heading >= 360.0, 0.0, heading)
     return AttitudeEstimate(np.stack([heading, pitch, bank], axis=-1), on_ground, assumptions())
 

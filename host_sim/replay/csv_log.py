@@ -37,16 +37,50 @@ def _rows(f: Iterable[str]) -> Iterator[tuple[int, list[str]]]:
             yield number, next(csv.reader([line]), [])
 
 
+#: Bytes read to tell a text CSV log from a binary file or another encoding.
+_SNIFF = 4096
+#: Share of control bytes (not tab, line ends or form feed) above which a file is binary:
+#: random bytes have 11 %, a text log a few damaged lines' worth.
+_BINARY_SHARE = 0.05
+
+
+def _encoding(path: Path) -> str:
+    """The text encoding of a CSV log from its first bytes: UTF-8 with or without the byte
+    order mark spreadsheets write ("CSV UTF-8"), or UTF-16 with its mark.
+
+    Raises:
+        ValueError: more control bytes than a damaged text log has (a binary file).
+    """
+    with open(path, "rb") as f:
+        head = f.read(_SNIFF)
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return "utf-16"
+    # A logger that lost power leaves a few NUL bytes in a text log (a damaged line, counted);
+    # a binary file is full of control bytes.
+    control = sum(1 for byte in head if byte < 32 and byte not in b"\t\n\r\f")
+    if control > _BINARY_SHARE * len(head):
+        raise ValueError(f"{path.name}: not a text CSV log ({control} of its first {len(head)} bytes are "
+                         f"control bytes: binary data)")
+    return "utf-8-sig"
+
+
+def _shown(names: Iterable[str]) -> str:
+    """Header names for a message: non-printable characters escaped, at most 120 characters."""
+    text = ", ".join(names)
+    text = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in text)
+    return text if len(text) <= 120 else text[:117] + "..."
+
+
 def read(path: Path) -> RawLog:
     """The records of a CSV log.
 
     Raises:
-        ValueError: no header, or a header without time_s and a full position triple, or
+        ValueError: a binary file, no header, or a header without time_s and a full position triple, or
             with only part of the attitude triple, or a position column without any value
             (the message names the columns).
     """
     raw = RawLog()
-    with open(path, newline="", encoding="utf-8", errors="replace") as f:
+    with open(path, newline="", encoding=_encoding(path), errors="replace") as f:
         rows = _rows(f)
         header = next((row for _, row in rows if row), None)
         if header is None:
@@ -57,10 +91,10 @@ def read(path: Path) -> RawLog:
         elif all(c in columns for c in WORLD):
             position, raw.geodetic = WORLD, False
         else:
-            raise ValueError(f"{path.name}: header {', '.join(columns)} has neither {', '.join(GEODETIC)} "
+            raise ValueError(f"{path.name}: header {_shown(columns)} has neither {', '.join(GEODETIC)} "
                              f"nor {', '.join(WORLD)}")
         if "time_s" not in columns:
-            raise ValueError(f"{path.name}: header {', '.join(columns)} has no time_s")
+            raise ValueError(f"{path.name}: header {_shown(columns)} has no time_s")
         present = [c in columns for c in ATTITUDE]
         if any(present) and not all(present):
             raise ValueError(f"{path.name}: header has only part of {', '.join(ATTITUDE)}")

@@ -25,7 +25,8 @@ PLOT_RATE_HZ = 20.0
 PLOT_MAX_SAMPLES = 20000
 
 #: Names of the attitude sources per record (Track.attitude_source).
-SOURCES = {"logged": "logged", "air": "estimated in the air", "ground": "estimated on the ground"}
+SOURCES = {"logged": "logged", "interpolated": "logged, interpolated across short dropouts",
+           "air": "estimated in the air", "ground": "estimated on the ground"}
 
 
 def replay_report(track: Track, *, path: str, format: str) -> dict[str, Any]:
@@ -39,6 +40,7 @@ def replay_report(track: Track, *, path: str, format: str) -> dict[str, Any]:
         "format": format,
         "records_read": int(track.records_read),
         "records_used": used,
+        "records_merged": int(track.merged),
         "interpolated": {c: int(n) for c, n in track.interpolated.items()},
         "coverage": {c: float(v) for c, v in track.coverage.items()},
         "dropped": dropped,
@@ -46,7 +48,8 @@ def replay_report(track: Track, *, path: str, format: str) -> dict[str, Any]:
         "start_time_s": float(track.start_time),
         "duration_s": float(track.duration_s),
         "largest_gap": {"seconds": float(dt[k]), "after_s": float(track.t_s[k])},
-        "attitude": "estimated" if track.attitude_estimated else "logged",
+        "attitude": ("estimated" if track.attitude_estimated else
+                     "logged, estimated across long dropouts" if track.assumptions else "logged"),
         "attitude_segments": attitude_segments(track),
         "assumptions": list(track.assumptions),
         "notes": list(track.notes),
@@ -70,7 +73,8 @@ def attitude_segments(track: Track) -> list[dict[str, Any]]:
 def format_report(doc: dict[str, Any]) -> str:
     """The report as the text `ig host --report` prints."""
     lines = [f"replay report: {doc['file']} ({doc['format']})",
-             f"  records read {doc['records_read']}, used {doc['records_used']}"]
+             f"  records read {doc['records_read']}, used {doc['records_used']}"
+             + (f", merged into another of their time {doc['records_merged']}" if doc["records_merged"] else "")]
     if doc["dropped"]:
         lines.append("  dropped by cause: " + ", ".join(f"{c} {n}" for c, n in sorted(doc["dropped"].items())))
     else:

@@ -173,9 +173,13 @@ class Track:
             filled.
         logged_hpr: (n, 3) heading, pitch, roll degrees as logged at the track's records, NaN
             where the record had none; None when the attitude was estimated.
-        attitude_source: (n,) per record "logged", or when estimated "air" or "ground" (the
-            estimator found a ground roll there; report.py).
+        attitude_source: (n,) per record "logged", "interpolated" (a cell filled across a
+            short dropout), or estimated from the track "air" or "ground" (the estimator found
+            a ground roll there): a log without attitude, or a dropout longer than a gap
+            (report.py).
         assumptions: what the attitude estimate took for granted (empty when logged).
+        merged: records merged into another record of the same time whose missing cells
+            they held (two sensors logging at one time): neither used apart nor dropped.
     """
 
     t_s: np.ndarray
@@ -194,6 +198,7 @@ class Track:
     logged_hpr: np.ndarray | None = None
     attitude_source: np.ndarray = field(default_factory=lambda: np.array([], dtype=object))
     assumptions: list[str] = field(default_factory=list)
+    merged: int = 0
 
     @property
     def duration_s(self) -> float:
@@ -230,6 +235,8 @@ class _Problems:
 
     def __init__(self, raw: RawLog) -> None:
         self.counts, self.notes = dict(raw.problems), list(raw.notes)
+        #: Records merged into another of the same time (no problem: cells it lacked).
+        self.merged = 0
         for cause in PROBLEMS:
             self.counts.setdefault(cause, 0)
 
@@ -300,6 +307,7 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
     interpolated = {"position": int(np.count_nonzero(~own_position))}
     coords = np.stack([_fill(times, coords[:, j], circular=False) for j in range(3)], axis=1)
     logged = None
+    filled_for = np.zeros(len(times))  # per record: the longest attitude dropout it is filled across
     if hpr is not None:
         own = np.isfinite(hpr)
         for j, c in enumerate(ATTITUDE):
@@ -307,6 +315,7 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
         if own.any(axis=0).all():
             logged = hpr.copy()
             logged[:, 0] %= 360.0
+            filled_for = np.max([_dropout(times, own[:, j]) for j in range(3)], axis=0)
             hpr = np.stack([_fill(times, hpr[:, j], circular=_CIRCULAR[j]) for j in range(3)], axis=1)
         else:  # a column with no value in any record used: the log's attitude is incomplete
             empty = ", ".join(c for j, c in enumerate(ATTITUDE) if not own[:, j].any())
@@ -332,21 +341,33 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
 
     estimated = hpr is None
     assumptions: list[str] = []
-    if hpr is None:
+    # An attitude dropout longer than a position gap (an AHRS failure) is not interpolated:
+    # holding or bridging it would freeze the picture through a turn; the track says more.
+    lost = filled_for > threshold
+    if hpr is None or lost.any():
         est = attitude.estimate_with_report(t, position)
-        hpr, assumptions = est.hpr, est.assumptions
-        source = np.where(est.on_ground, "ground", "air").astype(object)
+        assumptions = est.assumptions
+        guessed = np.where(est.on_ground, "ground", "air").astype(object)
+    if hpr is None:
+        hpr, source = est.hpr, guessed
     else:
-        source = np.full(len(t), "logged", dtype=object)
+        source = np.where(filled_for > 0.0, "interpolated", "logged").astype(object)
         if raw.geodetic and origin is not None:  # (origin is set for every geodetic log)
             # Logged angles are against local north and the local horizontal at the aircraft;
             # the world is the tangent plane at the origin (5.4 degrees apart at 600 km).
             hpr = attitude.local_to_world(hpr, coords[:, 0], coords[:, 1], origin)
+        if lost.any():
+            hpr[lost], source[lost] = est.hpr[lost], guessed[lost]
+            spans = _runs(lost)
+            problem.notes.append(
+                f"attitude: {len(spans)} dropout(s) longer than {threshold:.1f} s estimated from the track "
+                f"({', '.join(f'{t[a]:.1f}-{t[b]:.1f} s' for a, b in spans[:3])}"
+                f"{', ...' if len(spans) > 3 else ''})")
     quat = attitude.continuous(attitude.from_hpr(hpr))
     track = Track(t, position, quat, gap, _tangents(t, position, gap), estimated, problem.counts, problem.notes,
                   origin, float(times[0]), records_read=max(raw.records_read, n_in), coverage=coverage,
                   interpolated=interpolated, logged_hpr=logged, attitude_source=source,
-                  assumptions=assumptions)
+                  assumptions=assumptions, merged=problem.merged)
     for a in (track.t_s, track.position, track.quat, track.gap, track.tangent, track.logged_hpr):
         if a is not None:
             a.setflags(write=False)
@@ -478,6 +499,7 @@ def _choose_duplicates(times, coords, hpr, keep, metres, problem, label) -> None
                 coords[k] = np.where(np.isfinite(coords[k]), coords[k], coords[o])
                 if hpr is not None:
                     hpr[k] = np.where(np.isfinite(hpr[k]), hpr[k], hpr[o])
+                problem.merged += 1
                 continue
             why = ("the first is kept" if pred is None else
                    f"kept {label(k)}, {miss[k - s]:.0f} m from its neighbours' motion; this one "
@@ -640,6 +662,33 @@ def _positioned(times, coords, hpr, keep, problem, label) -> np.ndarray:
         why = "nothing but a time" if not anything[i] else "no position, and none to interpolate from"
         problem("no_position", f"{label(i)}: t={times[i]:.3f} s has {why}")
     return ok
+
+
+def _dropout(t: np.ndarray, own: np.ndarray) -> np.ndarray:
+    """Per record, the length of the dropout of a column it lies in (0 where the column has
+    its own value): the time between the column's values before and after it; before the
+    first or after the last value, twice the time to that value (a dropout as long on the
+    side the log does not show)."""
+    out = np.zeros(len(t))
+    have = np.flatnonzero(own)
+    if len(have) == 0:
+        return out
+    for i in np.flatnonzero(~own):
+        k = int(np.searchsorted(have, i))
+        before = t[have[k - 1]] if k > 0 else None
+        after = t[have[k]] if k < len(have) else None
+        if before is not None and after is not None:
+            out[i] = after - before
+        else:
+            out[i] = 2.0 * abs(t[i] - (after if after is not None else before))
+    return out
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of every run of True in mask."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), (np.flatnonzero(edges == -1) - 1).tolist(),
+                    strict=True))
 
 
 def _fill(t: np.ndarray, v: np.ndarray, *, circular: bool) -> np.ndarray:

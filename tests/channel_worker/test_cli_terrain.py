@@ -102,6 +102,31 @@ def test_cells_that_are_not_finite_and_bad_cell_sizes_exit_2_with_one_line(tmp_p
     assert not out.exists()
 
 
+@pytest.mark.parametrize("mode", ["fill", "refuse"])
+@pytest.mark.parametrize("cells,message", [
+    # Each built with exit 0 before: GDAL read the cell as 0, wrapped it or clamped it.
+    (b"1 2 3\n4 abc 6\n7 8 9\n", "cells: row 1, column 1 (from 0, the file's first row and column): 'abc' is not "
+                                 "a number"),
+    (b"1 2 3\n4 5 6\n\xff\xfe 8 9\n", r"cells: row 2, column 0 (from 0, the file's first row and column): "
+                                      r"'\xff\xfe' is not a number"),
+    (b"1 2 3\n4 5 6\n7 8 30000000000\n", "heights: 1 of 9 cells are outside -12000 .. 9000 m (the Challenger Deep "
+                                         "to above Everest), the first at row 2, column 2 (from 0, the file's first "
+                                         "row and column): 30000000000 (3e+10 m)"),
+    (b"1 2 3\n4 1e39 6\n7 8 9\n", "heights: 1 of 9 cells are outside -12000 .. 9000 m"),
+    (b"1 2 3\n4 5 6\n7 8\n", "cells: the file has 8 cells, not ncols x nrows = 3 x 3 = 9"),
+])
+def test_damaged_cells_and_implausible_heights_exit_2_with_one_line_in_both_modes(tmp_path, capsys, mode, cells,
+                                                                                  message):
+    pytest.importorskip("rasterio")
+    path = tmp_path / "dem.asc"
+    path.write_bytes(b"ncols 3\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 10\n" + cells)
+    out = tmp_path / "dem.igt"
+    assert main(["terrain", "build", f"{path}?nodata={mode}", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"ig terrain: error: {path}: ") and message in err and err.count("\n") == 1
+    assert not out.exists()
+
+
 def test_help_describes_every_option(capsys):
     from services.cli import build_parser
     for argv in (["terrain", "--help"], ["terrain", "build", "--help"], ["terrain", "info", "--help"]):

@@ -110,6 +110,62 @@ def test_parked_then_a_vertical_climb_and_a_hover():
     assert not est.on_ground[labels == "hover"].any()  # 50 m above where it parked
 
 
+def gaussian(rng, pos, sigma_m):
+    """Positions with Gaussian horizontal noise of sigma_m in east and in north (heights clean)."""
+    return pos + rng.normal(0.0, 1.0, pos.shape) * [sigma_m, sigma_m, 0.0]
+
+
+def assert_heading_rate_limited(t, heading):
+    limit = attitude.MAX_HEADING_RATE_DPS * np.diff(t) * (1 + 1e-9) + 1e-9
+    assert (angle_error(heading[1:], heading[:-1]) <= limit).all()
+
+
+@pytest.mark.parametrize("sigma_m", [1.0, 2.0, attitude.GNSS_NOISE_M])
+@pytest.mark.parametrize("seed", range(5))
+def test_a_parked_heading_holds_through_gnss_noise(sigma_m, seed):
+    # The issue: at 1 Hz with sigma 1.5 m of noise, the window's speed from noise alone often
+    # passed the 1 m/s hold threshold, and the parked heading spun through 265 degrees at up to
+    # 176 deg/s. Taxi in heading 70, park for 120 s (pivoting 90 degrees in place, which the track
+    # cannot show), taxi away heading 160.
+    t, clean, labels = path_of([("in", 30, 8, 8, 0, 0), ("parked", 120, 0, 0, 0.75, 0),
+                                ("out", 60, 10, 10, 0, 0)], heading=70.0)
+    heading = attitude.estimate(t, gaussian(np.random.default_rng(seed), clean, sigma_m))[:, 0]
+    assert_heading_rate_limited(t, heading)
+    parked = np.flatnonzero(labels == "parked")
+    # Records whose motion window is all parked and which the limited turn to the taxi-out
+    # heading (90 degrees at MAX_HEADING_RATE_DPS, smoothed both ways) does not reach.
+    turn_s = 90.0 / attitude.MAX_HEADING_RATE_DPS
+    half = attitude.MOTION_WINDOW_S / 2.0
+    still = parked[(t[parked] >= t[parked[0]] + half) & (t[parked] <= t[parked[-1]] - half - turn_s)]
+    swing = np.degrees(np.unwrap(np.radians(heading[still])))
+    assert swing.max() - swing.min() < 1.0
+    # The taxi-in heading, held: that of the last window to pass MOVING_DISPLACEMENT_M, with an
+    # error of 0.61 sigma / MOVING_DISPLACEMENT_M radians (3.5 deg at sigma 1 m).
+    assert angle_error(heading[still], 70.0).max() < 4.0 * math.degrees(
+        0.61 * sigma_m / attitude.MOVING_DISPLACEMENT_M) + 1.0
+    out = np.flatnonzero(labels == "out")
+    out = out[(t[out] >= t[out[0]] + half) & (t[out] <= t[-1] - half)]
+    error = angle_error(heading[out], 160.0)
+    # The direction between the halves' mean positions, 30 m apart at 10 m/s, has an error of
+    # 0.61 sigma / 30 m radians (1.2 deg at sigma 1 m): follows the track, no more noisy than that.
+    assert np.median(error) < 3.0
+    assert error.max() < 4.0 * math.degrees(0.61 * sigma_m / 30.0) + 1.0
+
+
+def test_heading_turns_no_faster_than_an_aircraft():
+    # A 180-degree glitch in a taxi (one fix 40 m to the side) and a reversal on the spot.
+    t, clean, _ = path_of([("taxi", 30, 10, 10, 0, 0), ("stop", 5, 10, 0, 0, 0), ("back", 30, 0, 0, 0, 0)])
+    clean[40:, 1] = clean[39, 1] - 8.0 * (t[40:] - t[39])  # then taxi back south
+    clean[20, 0] += 40.0
+    est = attitude.estimate_with_report(t, clean)
+    assert_heading_rate_limited(t, est.hpr[:, 0])
+    assert angle_error(est.hpr[:10, 0], 0.0).max() < 1.0
+    assert angle_error(est.hpr[-20:-4, 0], 180.0).max() < 1.0
+    text = " ".join(est.assumptions)
+    for value in (attitude.MAX_HEADING_RATE_DPS, attitude.MOVING_DISPLACEMENT_M, attitude.GNSS_NOISE_M):
+        assert f"{value:g}" in text
+
+
 def test_an_igc_like_track_with_quantised_fixes():
     # 1 Hz fixes as IGC stores them: thousandths of a minute of latitude and longitude, whole
     # metres of height; a tow to 600 m at 5.7 degrees, then level.
@@ -174,6 +230,7 @@ def test_random_noisy_tracks_stay_finite_and_bounded(seed, n, dt_max, noise_m, s
     dt = np.diff(t)
     assert (np.abs(np.diff(hpr[:, 1])) <= attitude.MAX_PITCH_RATE_DPS * dt * (1 + 1e-9) + 1e-9).all()
     assert (np.abs(np.diff(hpr[:, 2])) <= attitude.MAX_BANK_RATE_DPS * dt * (1 + 1e-9) + 1e-9).all()
+    assert_heading_rate_limited(t, hpr[:, 0])
 
 
 # Logged attitudes: the local frame at the aircraft -> the world frame at the origin.

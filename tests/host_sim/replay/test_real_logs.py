@@ -345,3 +345,45 @@ def test_ulog_reader_refuses_a_non_ulog_with_a_value_error(tmp_path):
     path = tmp_path / "g.ulg"
     path.write_bytes(b"ULog\x01\x12\x35" + struct.pack("<Q", 0) + b"\xff" * 40)
     assert load_or_refuse(path) is None
+
+
+# -- encodings and damaged text ------------------------------------------------------------
+
+@pytest.mark.parametrize("encoding", ["utf-8-sig", "utf-16"])
+def test_spreadsheet_encodings_are_read(tmp_path, encoding):
+    # Excel's "CSV UTF-8" starts with a byte order mark; "Unicode text" is UTF-16.
+    text = "time_s,x_m,y_m,z_m\n0,0,0,10\n1,0,40,10\n2,0,80,12\n"
+    path = tmp_path / "s.csv"
+    path.write_text(text, encoding=encoding)
+    track, _ = load_track(path)
+    assert len(track.t_s) == 3 and track.problems["corrupt"] == 0
+
+
+def test_a_binary_file_is_refused_as_such_and_a_few_nul_bytes_are_not(tmp_path):
+    rng = np.random.default_rng(0)
+    binary = tmp_path / "b.csv"
+    binary.write_bytes(rng.integers(0, 256, 5000, dtype=np.uint8).tobytes())
+    with pytest.raises(ValueError, match=r"b.csv: not a text CSV log \(\d+ of its first 4096 bytes are control"):
+        load_track(binary)
+    # A logger that lost power mid-line: NUL bytes where a line was; the rest is kept.
+    lines = csv_cells(good_rows())
+    lines.insert(8, "\x00" * 40)
+    damaged = write_lines(tmp_path / "n.csv", lines)
+    track, _ = load_track(damaged)
+    assert len(track.t_s) == len(GOOD)
+
+
+def test_a_long_attitude_dropout_is_estimated_from_the_track_not_held(tmp_path):
+    # An AHRS that fails after 60 s of a 3 deg/s turn: holding its last values would freeze
+    # the picture for the rest of the turn; the estimate from the track keeps turning.
+    rows = flight(300)
+    lines = csv_cells(rows, blanks={(i, j) for i in range(60, 300) for j in (4, 5, 6)})
+    track, _ = load_track(write_lines(tmp_path / "a.csv", lines), origin=ORIGIN)
+    assert track.problems["corrupt"] == 0
+    source = np.asarray(track.attitude_source)
+    assert (source[:60] == "logged").all() and (source[62:] == "air").all()
+    assert any(n.startswith("attitude: 1 dropout(s) longer than") for n in track.notes)
+    headings = np.array([track.sample(t).heading_deg for t in (100.0, 200.0)])
+    true = np.array([rows[100][4], rows[200][4]])
+    assert np.all(np.abs((headings - true + 180.0) % 360.0 - 180.0) < 5.0)
+    assert track.assumptions  # the estimate says what it assumed

@@ -133,6 +133,86 @@ def test_a_cell_size_that_is_not_finite_and_positive_is_refused(tmp_path, header
         open_elevation(str(path))
 
 
+@pytest.mark.parametrize("mode", ["fill", "refuse"])
+@pytest.mark.parametrize("cells,shown,row,col,count", [
+    # GDAL reads each of these as 0 (1_000 as 1) and the build would succeed.
+    (b"1 2 3\n4 abc 6\n7 8 xyz\n", "'abc'", 1, 1, 2),
+    (b"1 2 3\n4 5 6\n7 \xff\xfe 9\n", r"'\xff\xfe'", 2, 1, 1),
+    (b"1 2 3\n4 1_000 6\n7 8 9\n", "'1_000'", 1, 1, 1),
+    (b"1 2 3\n4 5 0x10\n7 8 9\n", "'0x10'", 1, 2, 1),
+    (b"1 2 3\n4 5 1e\n7 8 9\n", "'1e'", 1, 2, 1),  # only digits: numpy's parse fails, the search names it
+    # A first row that starts with a word is a damaged cell, not more header (as GDAL would take it).
+    (b"abc 2 3\n4 5 6\n7 8 9\n", "'abc'", 0, 0, 1),
+])
+def test_esri_ascii_cells_that_are_not_numbers_are_refused_in_both_modes(tmp_path, mode, cells, shown, row, col,
+                                                                         count):
+    path = tmp_path / "bad.asc"
+    path.write_bytes(b"ncols 3\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 10\n" + cells)
+    with pytest.raises(TerrainError) as exc:
+        open_elevation(f"{path}?nodata={mode}")
+    assert str(exc.value) == (f"{path}: cells: row {row}, column {col} (from 0, the file's first row and column): "
+                              f"{shown} is not a number (cells that are not: {count}); the file is damaged")
+
+
+@pytest.mark.parametrize("cells,count", [("1 2 3\n4 5 6\n7 8\n", 8), ("1 2 3\n4 5 6\n7 8 9 10\n", 10)])
+def test_esri_ascii_cell_count_must_be_ncols_by_nrows(tmp_path, cells, count):
+    # GDAL pads a short grid with 0 and drops the extra cells of a long one.
+    path = tmp_path / "g.asc"
+    path.write_text(f"ncols 3\nnrows 3\nxllcorner 0\nyllcorner 0\ncellsize 10\n{cells}")
+    with pytest.raises(TerrainError, match=rf"g.asc: cells: the file has {count} cells, not ncols x nrows = "
+                                           rf"3 x 3 = 9$"):
+        open_elevation(str(path))
+
+
+@pytest.mark.parametrize("mode", ["fill", "refuse"])
+@pytest.mark.parametrize("cell,metres", [
+    ("30000000000", "3e+10"),  # GDAL's int32 wraps it to -64771072
+    ("1e39", "1e+39"),  # GDAL's float32 clamps it to 3.4e38
+    ("-12000.5", "-12000.5"), ("9000.001", "9000"),
+])
+def test_esri_ascii_heights_outside_the_plausible_range_are_refused(tmp_path, mode, cell, metres):
+    path = ascii_grid(tmp_path / "high.asc", [["1", "2", "3"], ["4", "5", "6"], ["7", cell, "9"]])
+    with pytest.raises(TerrainError) as exc:
+        open_elevation(f"{path}?nodata={mode}")
+    assert str(exc.value) == (f"{path}: heights: 1 of 9 cells are outside -12000 .. 9000 m (the Challenger Deep "
+                              f"to above Everest), the first at row 2, column 1 (from 0, the file's first row and "
+                              f"column): {cell} ({metres} m)")
+
+
+def test_esri_ascii_heights_are_the_texts_own_values(tmp_path):
+    # The limits themselves are plausible; a declared nodata value outside them is nodata, not a
+    # height; decimals keep float64 precision (GDAL's float32 would give 8848.8603515625).
+    path = ascii_grid(tmp_path / "ok.asc", [["-12000", "9000", "8848.86"], ["4", "-99999", "6"]],
+                      extra="NODATA_value -99999\n")
+    grid = open_elevation(str(path))
+    assert grid.info["nodata_filled"] == 1
+    np.testing.assert_array_equal(grid.values[1], [-12000.0, 9000.0, 8848.86])  # row 0 south: the file's last
+    with pytest.raises(TerrainError, match=r"ok.asc: nodata: 1 of 6 cells are nodata \(-99999.0\) or not finite, "
+                                           r"the first at row 1, column 1 \(.*\): -99999;"):
+        open_elevation(f"{path}?nodata=refuse")
+
+
+def test_geotiff_heights_outside_the_plausible_range_are_refused(tmp_path):
+    values = np.full((4, 5), 42.0, np.float32)
+    values[1, 2] = 1e30
+    values[3, 4] = -32768.0  # SRTM's void, not declared as nodata
+    path = write_raster(tmp_path / "high.tif", values, transform=from_origin(0, 4, 1, 1))
+    for mode in ("fill", "refuse"):
+        with pytest.raises(TerrainError, match=r"high.tif: heights: 2 of 20 cells are outside -12000 .. 9000 m "
+                                               r"\(.*\), the first at row 1, column 2 \(from 0, the file's first "
+                                               r"row and column\): 1.00000001504\d*e\+30 \(1e\+30 m\)$"):
+            open_elevation(f"{path}?nodata={mode}")
+    declared = write_raster(tmp_path / "void.tif", np.where(values > 1e6, 42.0, values).astype(np.int16),
+                            transform=from_origin(0, 4, 1, 1), nodata=-32768)
+    np.testing.assert_allclose(open_elevation(str(declared)).values, 42.0)
+    # The range is in metres, after the band's unit: 30000 ft is 9144 m.
+    feet = write_raster(tmp_path / "feet.tif", np.full((2, 2), 30000, np.int16), transform=from_origin(0, 2, 1, 1))
+    with rasterio.open(feet, "r+") as ds:
+        ds.units = ("ft",)
+    with pytest.raises(TerrainError, match=r"feet.tif: heights: 4 of 4 .*: 30000 \(9144 m\)$"):
+        open_elevation(str(feet))
+
+
 def test_bad_raster_sources_are_named(tmp_path):
     rotated = write_raster(tmp_path / "rot.tif", np.zeros((3, 3), np.float32),
                            transform=Affine(1.0, 0.2, 0.0, 0.1, -1.0, 3.0))
