@@ -40,9 +40,14 @@ def read(path: Path) -> RawLog:
                 raw.problem("corrupt", f"line {line_no}: {line.strip()[:40]!r}")
                 continue
             hh, mm, ss, lat_d, lat_m, ns, lon_d, lon_m, ew, valid, p_alt, g_alt = m.groups()
-            if int(hh) > 23 or int(mm) > 59 or int(ss) > 59 or int(lat_d) > 90 or int(lon_d) > 180 \
-                    or int(lat_m) >= 60000 or int(lon_m) >= 60000:
-                raw.problem("corrupt", f"line {line_no}: field out of range in {line.strip()[:40]!r}")
+            bad = next(((name, text, limit) for name, text, limit in (
+                ("hours", hh, 23), ("minutes", mm, 59), ("seconds", ss, 59),
+                ("latitude degrees", lat_d, 90), ("latitude thousandths of minutes", lat_m, 59999),
+                ("longitude degrees", lon_d, 180), ("longitude thousandths of minutes", lon_m, 59999))
+                if int(text) > limit), None)
+            if bad is not None:
+                name, text, limit = bad
+                raw.problem("out_of_range", f"line {line_no}: {name} = {text} outside 0 .. {limit}")
                 continue
             if valid == "V":
                 raw.problem("no_fix", f"line {line_no}: fix marked V (no valid position)")

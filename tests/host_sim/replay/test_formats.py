@@ -94,7 +94,9 @@ def test_igc_damage_no_fix_and_midnight(tmp_path):
         (11, "B2500004630000N00700000EA0070000700"),  # hour 25
     ])
     track, _ = load_track(path)
-    assert track.problems["corrupt"] == 3 and track.problems["no_fix"] == 1
+    assert track.problems["corrupt"] == 2 and track.problems["no_fix"] == 1
+    assert track.problems["out_of_range"] == 1
+    assert any("line 12: hours = 25 outside 0 .. 23" in n for n in track.notes)
     assert track.duration_s == pytest.approx(29.0)  # across midnight UTC without a jump
     assert track.problems["out_of_order"] == 0 and track.problems["gap"] == 0
 
