@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 from numba import njit, prange
 
-from channel_worker.pipeline.jit import borrowing, lanes
+from channel_worker.pipeline.jit import borrowing, lanes, prefetch
 
 from ._groups import PRE_A, PRE_B, PRE_G, PRE_IR, PRE_R
 from ._sky_kernels import earth_samples, sky_and_earth
@@ -103,9 +103,15 @@ def warp_kernel(frame, pre, air, sky_haze, clouds, depth, block, out, threads):
 def _warp_row(frame, pre, air, sky_haze, clouds, depth, block, out, y0):
     """The blocks of warp_kernel whose top row is y0."""
     blocks_x = (frame.width + block - 1) // block
+    # Each block's texels are asked for while the block before it is drawn (jit.prefetch).
+    ok_next, cols_next, rows_next = _block_corners(0, y0, block, frame, pre)
+    _prefetch_block(pre, cols_next, rows_next)
     for bx in range(blocks_x):
         x0 = bx * block
-        ok, cols, rows = _block_corners(x0, y0, block, frame, pre)
+        ok, cols, rows = ok_next, cols_next, rows_next
+        if bx + 1 < blocks_x:
+            ok_next, cols_next, rows_next = _block_corners(x0 + block, y0, block, frame, pre)
+            _prefetch_block(pre, cols_next, rows_next)
         if ok:
             _warp_block(frame, pre, air, sky_haze, clouds, depth, out,
                         _Block(x0, y0, block, 1.0 / block, False, cols, rows))
@@ -142,6 +148,32 @@ def _block_corners(x0, y0, size, frame, pre):
     return ok, (c00, c10, c01, c11), (r00, r10, r01, r11)
 
 
+@njit(cache=True, inline="always")
+def _prefetch_block(pre, cols, rows):
+    """Ask for the pre-image texels a block reads (the bounding box of its corners' pre-image
+    coordinates, a texel more each way), a cache line at a time. Skipped for a block spanning
+    more than 64 texels either way (near the nadir or zenith, where its corners say little)."""
+    texels = pre.texels
+    ncols = texels.shape[0]
+    nrows = texels.shape[1]
+    nch = texels.shape[2]
+    c_lo = int(math.floor(min(min(cols[0], cols[1]), min(cols[2], cols[3])))) - 1
+    c_hi = int(math.floor(max(max(cols[0], cols[1]), max(cols[2], cols[3])))) + 2
+    r_lo = int(math.floor(min(min(rows[0], rows[1]), min(rows[2], rows[3])))) - 1
+    r_hi = int(math.floor(max(max(rows[0], rows[1]), max(rows[2], rows[3])))) + 2
+    if c_hi - c_lo > 64 or r_hi - r_lo > 64:
+        return
+    r_lo = min(max(r_lo, 0), nrows - 1)
+    r_hi = min(max(r_hi, 0), nrows - 1)
+    line = 16  # float32 texel values per 64-byte cache line
+    for c in range(c_lo, c_hi + 1):
+        cc = c % ncols if pre.full else min(max(c, 0), ncols - 1)
+        start = (cc * nrows + r_lo) * nch
+        end = (cc * nrows + r_hi) * nch + nch - 1
+        for i in range(start, end + line, line):
+            prefetch(texels, min(i, end))
+
+
 @borrowing
 def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
     """The pixels of one block of warp_kernel (blk: _Block), their pre-image coordinates
@@ -157,6 +189,7 @@ def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
     inv_sxs = 1.0 / mapping[0]
     inv_sys = 1.0 / mapping[2]
     for y in range(blk.y0, min(blk.y0 + blk.size, frame.height)):
+        tile_row = (y // depth.tile) * tiles_x
         for x in range(blk.x0, min(blk.x0 + blk.size, frame.width)):
             # The pixel centre: colour and range of the terrain.
             sx = x + 0.5
@@ -211,8 +244,7 @@ def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
             out.rgb[y, x, 1] = cg
             out.rgb[y, x, 2] = cb
             # Per sample: the terrain's coverage and depth there (only near terrain).
-            t = (y // depth.tile) * tiles_x + x // depth.tile
-            near = (depth.need[t]
+            near = (depth.need[tile_row + x // depth.tile]
                     and (texels[c0, r0, PRE_A] > 0.0 or texels[c1, r0, PRE_A] > 0.0
                          or texels[c0, r1, PRE_A] > 0.0 or texels[c1, r1, PRE_A] > 0.0))
             if not near:
