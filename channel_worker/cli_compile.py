@@ -3,7 +3,7 @@
 The kernels are cached per version of the pipeline's sources (channel_worker/pipeline/
 kernel_cache.py), so every worker started afterwards loads them in a second or two instead of
 compiling them itself; `ig demo` runs this before it starts the rig. On a cold cache the kernels
-compile in --jobs processes at once (channel_worker/compile_jobs.py), and the progress shows
+compile in a process per group at once (channel_worker/compile_jobs.py), and the progress shows
 while they do: which group compiles which kernel, seconds so far, groups done. A request
 compiled before (same sources, scene and options) only loads them, in about a second.
 """
@@ -51,8 +51,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rig file whose [render] table the workers read (default: the bundled rig)")
     add_render_arguments(parser, renderer=True, with_range=True)
     parser.add_argument("--jobs", type=_jobs, default=_cores(),
-                        help="processes compiling at once on a cold cache (default: this machine's "
-                             f"cores, {_cores()}); 1 compiles in this process, one kernel at a time")
+                        help="cores to compile on (default: this machine's, "
+                             f"{_cores()}): from 2, the kernel groups each compile in a process of "
+                             "their own, all at once (three for a scene with terrain); 1 compiles "
+                             "in this process, one kernel at a time")
     parser.add_argument("--prune", action="store_true",
                         help="also remove the cached kernels of other versions of the sources")
 

@@ -59,16 +59,17 @@ def _ig(argv: list[str], env: dict[str, str]) -> subprocess.CompletedProcess:
 
 
 def test_compile_jobs_fill_a_cold_cache_that_a_worker_then_loads_every_kernel_from(tmp_path):
-    # An empty cache, as on a fresh clone: every kernel compiles, in two processes at once.
+    # An empty cache, as on a fresh clone: every kernel compiles, in three processes at once
+    # (polygons, the terrain's scan, the warp).
     env = {**os.environ, "IG_CACHE_DIR": str(tmp_path / "cache")}
     scene = str(demo_scene_path())
     done = _ig(["compile", "--jobs", "2", "--scene", scene], env)
     assert done.returncode == 0, done.stdout + done.stderr
     out = done.stdout
-    assert "[1/3]" in out and "[2/3]" in out and "kernels compiled in" in out
+    assert "[1/4]" in out and "[2/4]" in out and "[3/4]" in out and "kernels compiled in" in out
     # The groups rendered what render_frame renders: the check frame found every kernel cached.
     assert "note:" not in done.stderr, done.stderr
-    assert f"[3/3] {cli_compile._label(CHECK)}: every kernel loaded from the cache" in out, out
+    assert f"[4/4] {cli_compile._label(CHECK)}: every kernel loaded from the cache" in out, out
     index_files = {p: p.stat().st_mtime_ns for p in (tmp_path / "cache" / "numba").rglob("*.nbi")}
     assert index_files
 
@@ -93,12 +94,12 @@ def test_the_groups_are_planned_only_where_there_are_two_jobs_and_two_kinds_of_k
     flat = load_scene(bundled_scene_path())  # polygons only
     demo = load_scene(demo_scene_path())  # terrain, haze, clouds
     options = RenderOptions()
-    assert plan(demo, options, 2) == ["polygons", "background"]
+    assert plan(demo, options, 2) == ["polygons", "terrain", "sky"]
     assert plan(demo, options, 1) == []
     assert plan(flat, options, 4) == []
     hazy = dataclasses.replace(demo, terrain=None, fog=None)
     assert hazy.haze is not None and hazy.clouds is not None
-    assert plan(hazy, options, 2) == ["polygons", "background"]
+    assert plan(hazy, options, 2) == ["polygons", "sky"]  # no terrain: no scan to compile
     assert plan(hazy, options.replace(haze=False, clouds=False), 2) == []  # as render_frame draws it
     assert plan(demo, options.replace(renderer="scanline", samples="centre"), 2) == []
 
@@ -132,20 +133,20 @@ def test_numba_cache_saves_wait_for_the_lock(tmp_path):
 
 def test_the_display_shows_each_group_finished_and_the_total():
     out = io.StringIO()
-    display = cli_compile.ProgressDisplay(out, ["polygons", "background", CHECK])
+    display = cli_compile.ProgressDisplay(out, ["polygons", "sky", CHECK])
     with display:
-        for ev in [Progress("polygons", "group-start"), Progress("background", "group-start"),
+        for ev in [Progress("polygons", "group-start"), Progress("sky", "group-start"),
                    Progress("polygons", "kernel-start", "channel_worker.pipeline.visibility._v.visibility_kernel"),
                    Progress("polygons", "kernel-start", "channel_worker.pipeline.resolve._r.box_subarea"),
                    Progress("polygons", "kernel-end", "channel_worker.pipeline.resolve._r.box_subarea", 9.0),
                    Progress("polygons", "kernel-end", "channel_worker.pipeline.visibility._v.visibility_kernel", 12.0),
                    Progress("polygons", "group-end", seconds=12.5, kernels=2),
-                   Progress("background", "group-end", seconds=1.0, kernels=0),
+                   Progress("sky", "group-end", seconds=1.0, kernels=0),
                    Progress(CHECK, "group-start"), Progress(CHECK, "group-end", seconds=0.2, kernels=0)]:
             display.put(ev)
     lines = [line.removeprefix("ig compile:  ") for line in out.getvalue().splitlines()]
     assert lines[0] == "[1/3] polygons (geometry, binning, visibility, shading): 2 kernels compiled in 12.5 s"
-    assert lines[1].startswith("[2/3] background (") and lines[1].endswith("every kernel loaded from the cache, 1.0 s")
+    assert lines[1].startswith("[2/3] sky (") and lines[1].endswith("every kernel loaded from the cache, 1.0 s")
     assert lines[2] == "[3/3] a frame as a worker renders it: every kernel loaded from the cache, 0.2 s"
     assert display.kernels_compiled() == 2
     assert cli_compile._short("channel_worker.pipeline.resolve._resolve_kernels.box_subarea") == \

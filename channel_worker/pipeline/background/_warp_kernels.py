@@ -39,7 +39,7 @@ class _Block(NamedTuple):
     rows: tuple
 
 
-@njit(cache=True, inline="always")
+@borrowing
 def _map_point(sx, sy, frame, pre):
     """Pre-image coordinates (column, row; texel centres at integers) of screen point (sx, sy)
     (pixels)."""
@@ -127,7 +127,7 @@ def _warp_row(frame, pre, air, sky_haze, clouds, depth, block, out, y0):
                         _Block(qx0, qy0, half, 1.0 / half, not ok, cols, rows))
 
 
-@njit(cache=True, inline="always")
+@borrowing
 def _block_corners(x0, y0, size, frame, pre):
     """Pre-image coordinates of a block's corners (columns, rows), and whether interpolating
     them misses the exact value at the block's centre by at most 1/50 texel."""
@@ -148,7 +148,7 @@ def _block_corners(x0, y0, size, frame, pre):
     return ok, (c00, c10, c01, c11), (r00, r10, r01, r11)
 
 
-@njit(cache=True, inline="always")
+@borrowing
 def _prefetch_block(pre, cols, rows):
     """Ask for the pre-image texels a block reads (the bounding box of its corners' pre-image
     coordinates, a texel more each way), a cache line at a time. Skipped for a block spanning
