@@ -3,19 +3,27 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
+RUN_STAMP := $(VENV)/.installed-run
 
 .PHONY: demo test check bench clean proto
 
 # --no-compile: pip would byte-compile every installed module (15 s on the development
 # machine); Python compiles those a run imports, when it imports them (measured on a fresh clone:
 # make demo's first stitched frame 64.6 -> 56.0 s after the start).
-$(STAMP): pyproject.toml
+# The demo installs what the rig runs on (the package and its devices extra); the tests, the
+# checks and the benches add their tools to it: a fresh clone's make demo installed in 7.6 s
+# instead of 12.5 s.
+$(RUN_STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --upgrade pip >/dev/null
+	$(PY) -m pip install --no-compile -e '.[devices]'
+	touch $(RUN_STAMP)
+
+$(STAMP): $(RUN_STAMP)
 	$(PY) -m pip install --no-compile -e '.[test,devices,gis,check]'
 	touch $(STAMP)
 
-demo: $(STAMP)
+demo: $(RUN_STAMP)
 	$(VENV)/bin/ig demo
 
 test: $(STAMP)
