@@ -188,6 +188,9 @@ def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
     # Guard: screen_mapping's scales are nonzero (check_channel: left < right, bottom < top).
     inv_sxs = 1.0 / mapping[0]
     inv_sys = 1.0 / mapping[2]
+    # Under clear air the cloud image is 0 over the whole block: its pixels skip the cloud's
+    # interpolation (most blocks, even under a broken layer).
+    clear = clouds.on and not blk.exact and _clear_air(clouds, pre.full, blk)
     for y in range(blk.y0, min(blk.y0 + blk.size, frame.height)):
         tile_row = (y // depth.tile) * tiles_x
         for x in range(blk.x0, min(blk.x0 + blk.size, frame.width)):
@@ -237,7 +240,11 @@ def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
             if ir > 0.0:
                 nearest = min(nearest, 1.0 / ir)  # guard: ir > 0
             out.range_m[y, x] = nearest
-            if clouds.on:
+            if clear:
+                for ch in range(4):
+                    out.cloud[y, x, ch] = 0.0
+                out.cloud[y, x, 4] = math.inf
+            elif clouds.on:
                 cr, cg, cb = _cloud_over(clouds, pre.full, c, rr, nearest, (cr, cg, cb),
                                          out.cloud, y, x)
             out.rgb[y, x, 0] = cr
@@ -289,6 +296,33 @@ def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
                     # 1/z = ray / (range + push), range = 1 / ir; guard: ir > 0, push >= 0.
                     inv_z = ray_s * ir_s / (1.0 + push * ir_s)
                 out.inv_z[y, x, s] = inv_z
+
+
+@borrowing
+def _clear_air(clouds, full, blk):
+    """Whether every cloud texel an interpolated block's pixel centres can read (_cloud_over:
+    the two columns and rows around each point, over the bounding box of the block's corners,
+    which bounds its bilinear interior) has opacity 0. False for a box wider than 8 texels."""
+    cloud_pre = clouds.texels
+    ncc = cloud_pre.shape[0]
+    nrc = cloud_pre.shape[1]
+    c00, c10, c01, c11 = blk.cols
+    r00, r10, r01, r11 = blk.rows
+    # As _cloud_over maps them; guard: the ratios are > 0 (ratios of positive texel sizes).
+    c_lo = int(math.floor((min(min(c00, c10), min(c01, c11)) + 0.5) / clouds.col_ratio - 0.5))
+    c_hi = int(math.floor((max(max(c00, c10), max(c01, c11)) + 0.5) / clouds.col_ratio - 0.5)) + 1
+    r_lo = int(math.floor((min(min(r00, r10), min(r01, r11)) + 0.5) / clouds.row_ratio - 0.5))
+    r_hi = int(math.floor((max(max(r00, r10), max(r01, r11)) + 0.5) / clouds.row_ratio - 0.5)) + 1
+    if c_hi - c_lo > 8 or r_hi - r_lo > 8:
+        return False
+    r_lo = min(max(r_lo, 0), nrc - 1)
+    r_hi = min(max(r_hi, 0), nrc - 1)
+    for c in range(c_lo, c_hi + 1):
+        cc = c % ncc if full else min(max(c, 0), ncc - 1)
+        for r in range(r_lo, r_hi + 1):
+            if cloud_pre[cc, r, 3] != 0.0:
+                return False
+    return True
 
 
 @njit(cache=True, inline="always")
