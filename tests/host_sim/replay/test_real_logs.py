@@ -312,6 +312,33 @@ def test_igc_garbage_never_crashes_and_never_costs_good_records(garbage):
         assert np.min(np.abs(times - (12 * 3600 + T0 + row[0]))) < 1e-6
 
 
+def test_repeated_garbage_near_the_start_cannot_outvote_the_good_records(tmp_path):
+    # Found by the fuzz test above on a fresh clone: one garbage fix written three times among
+    # the first five records made the window around the second good record mostly garbage,
+    # and that record was dropped as misdated. Repeats are duplicates first.
+    junk = igc_b(0, 0.0, 0.0, 0) + "000"
+    path = write_igc(tmp_path / "r.igc", GOOD, start_s=int(12 * 3600 + T0),
+                     extra=[(6, junk), (6, junk), (4, junk)])
+    track, _ = load_track(path)
+    times = track.start_time + track.t_s
+    for row in GOOD:
+        assert np.min(np.abs(times - (12 * 3600 + T0 + row[0]))) < 1e-6
+    assert track.problems["duplicate"] == 2
+
+
+def test_a_record_agreeing_with_its_neighbour_is_not_misdated_among_wrong_times(tmp_path):
+    # Three garbage fixes of different times, all before the log, around its first two good
+    # records: the narrow windows near the start are mostly wrong times, but the second good
+    # record agrees with the first, which is not judged, so it stays.
+    junk = [igc_b(t, 1.0, 1.0, 100) + "000" for t in (5000, 20000, 30000)]
+    path = write_igc(tmp_path / "d.igc", GOOD, start_s=int(12 * 3600 + T0),
+                     extra=[(6, junk[2]), (6, junk[1]), (4, junk[0])])
+    track, _ = load_track(path)
+    times = track.start_time + track.t_s
+    for row in GOOD:
+        assert np.min(np.abs(times - (12 * 3600 + T0 + row[0]))) < 1e-6
+
+
 @FUZZ
 @given(st.lists(st.tuples(st.integers(11, 31), st.one_of(st.text(max_size=40).map(lambda s: "DATA," + s),
                                                           st.lists(CELL, max_size=14).map(
