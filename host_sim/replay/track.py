@@ -273,13 +273,6 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
     finite = np.isfinite(times)
     for i in np.flatnonzero(~finite):
         problem("corrupt", f"{label(i)}: time_s = {times[i]} is not finite")
-    # Exact repeats (the time and every value of an earlier record: a line written twice, or
-    # garbage repeated) are duplicates, dropped before the records are judged by their time,
-    # so that a block of them cannot outvote the records around it (three repeats of one
-    # garbage fix among a log's first five records made a good record look misdated).
-    for later, first in _repeats(times, coords, hpr, np.flatnonzero(finite)):
-        finite[later] = False
-        problem("duplicate", f"{label(later)} repeats {label(first)} exactly")
     # Misdated records, judged among the records with some position: a row of nothing but a
     # time says nothing about where it belongs (it is counted as no_position below).
     for m in _misdated(times, np.flatnonzero(finite & np.isfinite(coords).any(axis=1))):
@@ -438,21 +431,6 @@ def _misdated(times: np.ndarray, idx: np.ndarray) -> list[int]:
         if end - k <= MISDATED_RUN:
             out += [int(i) for i in idx[k:end]]
         k = end
-    return out
-
-
-def _repeats(times: np.ndarray, coords: np.ndarray, hpr: np.ndarray | None,
-             idx: np.ndarray) -> list[tuple[int, int]]:
-    """(i, j) for every record i among idx (in file order) whose time and every value (a
-    missing one included) are those of an earlier record j."""
-    rows = np.column_stack([times[idx], coords[idx]] + ([] if hpr is None else [hpr[idx]]))
-    first: dict[tuple, int] = {}
-    out = []
-    for i, row in zip(idx, rows.tolist(), strict=True):
-        key = tuple(None if v != v else v for v in row)  # NaN != NaN: missing values as None
-        j = first.setdefault(key, int(i))
-        if j != i:
-            out.append((int(i), j))
     return out
 
 

@@ -315,7 +315,8 @@ def test_igc_garbage_never_crashes_and_never_costs_good_records(garbage):
 def test_repeated_garbage_near_the_start_cannot_outvote_the_good_records(tmp_path):
     # Found by the fuzz test above on a fresh clone: one garbage fix written three times among
     # the first five records made the window around the second good record mostly garbage,
-    # and that record was dropped as misdated. Repeats are duplicates first.
+    # and that record was dropped as misdated. It agrees in time with the first good record,
+    # which is not judged, so it stays; the repeats are duplicates of one another.
     junk = igc_b(0, 0.0, 0.0, 0) + "000"
     path = write_igc(tmp_path / "r.igc", GOOD, start_s=int(12 * 3600 + T0),
                      extra=[(6, junk), (6, junk), (4, junk)])
