@@ -183,9 +183,7 @@ def compile_kernels(request: CompileRequest, database: Database, groups: list[st
 
 def run_group(group: str, request: CompileRequest) -> None:
     """Render the part of a frame that compiles group's kernels (GROUPS), in this process."""
-    from .pipeline.background.air import air_params
-    from .pipeline.background.background import render_background, warp_alone
-    from .pipeline.background.terrain import preimage_grid, scan_terrain
+    from .pipeline.background.background import render_background, scan_alone, warp_alone
     from .pipeline.geometry.view import frame_constants, make_view
     from .pipeline.render import render_frame
     from .pipeline.scene.load import load_scene
@@ -204,9 +202,7 @@ def run_group(group: str, request: CompileRequest) -> None:
         view = make_view(request.channel, EYEPOINT)
         if group == "terrain":
             if scene.terrain is not None:
-                grid = preimage_grid(view)
-                scan_terrain(scene, view, grid, air_params(scene, view, request.options.fog_table_subdivision),
-                             request.options.terrain_bias, {})
+                scan_alone(scene, view, request.options)
             return
         frame = frame_constants(view, scene, request.options.sample_offsets())
         if scene.terrain is None and scene.clouds is None:

@@ -150,24 +150,26 @@ def _block_corners(x0, y0, size, frame, pre):
 
 @borrowing
 def _prefetch_block(pre, cols, rows):
-    """Ask for the pre-image texels a block reads (the bounding box of its corners' pre-image
-    coordinates, a texel more each way), a cache line at a time. Skipped for a block spanning
-    more than 64 texels either way (near the nadir or zenith, where its corners say little)."""
+    """Ask for the pre-image texels a block reads (_texel_box of its corners, a texel more
+    each way), a cache line at a time. Skipped for a block spanning more than 64 texels either
+    way (near the nadir or zenith, where its corners say little)."""
     texels = pre.texels
     ncols = texels.shape[0]
     nrows = texels.shape[1]
     nch = texels.shape[2]
-    c_lo = int(math.floor(min(min(cols[0], cols[1]), min(cols[2], cols[3])))) - 1
-    c_hi = int(math.floor(max(max(cols[0], cols[1]), max(cols[2], cols[3])))) + 2
-    r_lo = int(math.floor(min(min(rows[0], rows[1]), min(rows[2], rows[3])))) - 1
-    r_hi = int(math.floor(max(max(rows[0], rows[1]), max(rows[2], rows[3])))) + 2
+    c_lo, c_hi = _texel_box(cols, 1.0)
+    r_lo, r_hi = _texel_box(rows, 1.0)
+    c_lo -= 1
+    r_lo -= 1
+    c_hi += 2
+    r_hi += 2
     if c_hi - c_lo > 64 or r_hi - r_lo > 64:
         return
-    r_lo = min(max(r_lo, 0), nrows - 1)
-    r_hi = min(max(r_hi, 0), nrows - 1)
+    r_lo = _row(r_lo, nrows)
+    r_hi = _row(r_hi, nrows)
     line = 16  # float32 texel values per 64-byte cache line
     for c in range(c_lo, c_hi + 1):
-        cc = c % ncols if pre.full else min(max(c, 0), ncols - 1)
+        cc = _column(c, ncols, pre.full)
         start = (cc * nrows + r_lo) * nch
         end = (cc * nrows + r_hi) * nch + nch - 1
         for i in range(start, end + line, line):
@@ -241,9 +243,7 @@ def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
                 nearest = min(nearest, 1.0 / ir)  # guard: ir > 0
             out.range_m[y, x] = nearest
             if clear:
-                for ch in range(4):
-                    out.cloud[y, x, ch] = 0.0
-                out.cloud[y, x, 4] = math.inf
+                _clear_cloud(out.cloud, y, x)
             elif clouds.on:
                 cr, cg, cb = _cloud_over(clouds, pre.full, c, rr, nearest, (cr, cg, cb),
                                          out.cloud, y, x)
@@ -301,28 +301,41 @@ def _warp_block(frame, pre, air, sky_haze, clouds, depth, out, blk):
 @borrowing
 def _clear_air(clouds, full, blk):
     """Whether every cloud texel an interpolated block's pixel centres can read (_cloud_over:
-    the two columns and rows around each point, over the bounding box of the block's corners,
-    which bounds its bilinear interior) has opacity 0. False for a box wider than 8 texels."""
+    the two columns and rows around each point, over _texel_box of the block's corners, which
+    bounds its bilinear interior) has opacity 0. False for a box wider than 8 texels."""
     cloud_pre = clouds.texels
     ncc = cloud_pre.shape[0]
     nrc = cloud_pre.shape[1]
-    c00, c10, c01, c11 = blk.cols
-    r00, r10, r01, r11 = blk.rows
-    # As _cloud_over maps them; guard: the ratios are > 0 (ratios of positive texel sizes).
-    c_lo = int(math.floor((min(min(c00, c10), min(c01, c11)) + 0.5) / clouds.col_ratio - 0.5))
-    c_hi = int(math.floor((max(max(c00, c10), max(c01, c11)) + 0.5) / clouds.col_ratio - 0.5)) + 1
-    r_lo = int(math.floor((min(min(r00, r10), min(r01, r11)) + 0.5) / clouds.row_ratio - 0.5))
-    r_hi = int(math.floor((max(max(r00, r10), max(r01, r11)) + 0.5) / clouds.row_ratio - 0.5)) + 1
+    c_lo, c_hi = _texel_box(blk.cols, clouds.col_ratio)
+    r_lo, r_hi = _texel_box(blk.rows, clouds.row_ratio)
+    c_hi += 1
+    r_hi += 1
     if c_hi - c_lo > 8 or r_hi - r_lo > 8:
         return False
-    r_lo = min(max(r_lo, 0), nrc - 1)
-    r_hi = min(max(r_hi, 0), nrc - 1)
     for c in range(c_lo, c_hi + 1):
-        cc = c % ncc if full else min(max(c, 0), ncc - 1)
-        for r in range(r_lo, r_hi + 1):
+        cc = _column(c, ncc, full)
+        for r in range(_row(r_lo, nrc), _row(r_hi, nrc) + 1):
             if cloud_pre[cc, r, 3] != 0.0:
                 return False
     return True
+
+
+@njit(cache=True, inline="always")
+def _texel_box(corners, ratio):
+    """The lowest and highest texel index (floor) of the four corner coordinates, mapped to an
+    image whose texels are ratio pre-image texels wide as _cloud_over maps them (ratio 1: the
+    pre-image's own). Guard: ratio > 0 (a ratio of positive texel sizes)."""
+    lo = min(min(corners[0], corners[1]), min(corners[2], corners[3]))
+    hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]))
+    return (int(math.floor((lo + 0.5) / ratio - 0.5)), int(math.floor((hi + 0.5) / ratio - 0.5)))
+
+
+@njit(cache=True, inline="always")
+def _clear_cloud(out_cloud, y, x):
+    """Pixel (x, y) sees no cloud: premultiplied colour and opacity 0, no entry range."""
+    for ch in range(4):
+        out_cloud[y, x, ch] = 0.0
+    out_cloud[y, x, 4] = math.inf
 
 
 @njit(cache=True, inline="always")
@@ -429,9 +442,7 @@ def _cloud_over(clouds, full, c, rr, behind, rgb, out_cloud, y, x):
     alpha = a00 + a10 + a01 + a11
     if alpha == 0.0:
         # Clear air (most pixels, even under a broken layer): premultiplied colour 0 too.
-        for ch in range(4):
-            out_cloud[y, x, ch] = 0.0
-        out_cloud[y, x, 4] = math.inf
+        _clear_cloud(out_cloud, y, x)
         return rgb
     entry = math.inf
     if alpha > 0.0:
@@ -468,13 +479,23 @@ def _cloud_over(clouds, full, c, rr, behind, rgb, out_cloud, y, x):
 def _columns(c, ncols, full):
     """Neighbouring columns of pre-image coordinate c and the weight of the second."""
     ci = int(math.floor(c))
-    if full:
-        return ci % ncols, (ci + 1) % ncols, c - ci
-    return min(max(ci, 0), ncols - 1), min(max(ci + 1, 0), ncols - 1), c - ci
+    return _column(ci, ncols, full), _column(ci + 1, ncols, full), c - ci
 
 
 @njit(cache=True, inline="always")
 def _rows(r, nrows):
     """Neighbouring rows of pre-image coordinate r (clamped) and the weight of the second."""
     ri = int(math.floor(r))
-    return min(max(ri, 0), nrows - 1), min(max(ri + 1, 0), nrows - 1), r - ri
+    return _row(ri, nrows), _row(ri + 1, nrows), r - ri
+
+
+@njit(cache=True, inline="always")
+def _column(ci, ncols, full):
+    """Column index ci of an image of ncols columns: round the circle if full, else clamped."""
+    return ci % ncols if full else min(max(ci, 0), ncols - 1)
+
+
+@njit(cache=True, inline="always")
+def _row(ri, nrows):
+    """Row index ri of an image of nrows rows, clamped."""
+    return min(max(ri, 0), nrows - 1)

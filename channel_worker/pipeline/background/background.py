@@ -95,6 +95,21 @@ def warp_alone(database: Database, view: View, frame: FrameConstants,
     return _render(database, view, frame, options, None, {}, None, scan=False)
 
 
+def scan_alone(database: Database, view: View, options: RenderOptions) -> Preimage:
+    """The terrain's column scan alone, as render_background runs it: warp_alone's other half,
+    for the compile process that builds the scan's kernels.
+
+    Args:
+        database: a scene with terrain.
+        view, options: as render_background's.
+    """
+    if database.terrain is None:
+        raise ValueError("scan_alone: the scene has no terrain")
+    return scan_terrain(database, view, preimage_grid(view),
+                        air_params(database, view, options.fog_table_subdivision),
+                        options.terrain_bias, {})
+
+
 def _render(database: Database, view: View, frame: FrameConstants, options: RenderOptions,
             bins: Bins | None, counters: dict[str, int], parts: dict[str, float] | None, *,
             scan: bool) -> Background:

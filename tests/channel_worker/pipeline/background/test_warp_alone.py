@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from channel_worker.pipeline.background.background import render_background, warp_alone
+from channel_worker.pipeline.background.background import render_background, scan_alone, warp_alone
 from channel_worker.pipeline.geometry.view import frame_constants, make_view
 from channel_worker.pipeline.scene.load import bundled_scene_path, demo_scene_path, load_scene
 from services.rig.frame import ChannelSpec, Eyepoint
@@ -40,3 +40,13 @@ def test_a_scene_without_terrain_or_clouds_has_no_warp_to_compile():
     view, frame, options = _frame(flat)
     with pytest.raises(ValueError, match="neither terrain nor clouds"):
         warp_alone(flat, view, frame, options)
+
+
+def test_the_scan_alone_is_the_pre_image_the_stage_warps():
+    demo = load_scene(demo_scene_path())
+    view, _, options = _frame(demo)
+    pre = scan_alone(demo, view, options)
+    assert pre.texels.shape[0] > 1 and (pre.texels[..., 3] > 0).any()  # terrain was scanned
+    flat = load_scene(bundled_scene_path())
+    with pytest.raises(ValueError, match="no terrain"):
+        scan_alone(flat, *_frame(flat)[::2])
