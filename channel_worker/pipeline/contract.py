@@ -79,6 +79,36 @@ F_COARSENED = F_ON + 23  # 1 where the table spacing was widened (MAX_TABLE), fo
 F_TABLE = F_ON + 24
 
 
+class TextureStore(NamedTuple):
+    """The scene's textures, every mip level of every one in one array (scene/textures.py builds
+    it; the kernels take it whole).
+
+    Attributes:
+        texels: (M, 3) float32 the modulation signal (colour / mean colour - 1 per channel) of
+            every level of every texture, row-major, concatenated.
+        level: (T, L, 3) int64 per texture, per level: (offset of texel (0, 0) in texels, log2
+            width, log2 height); levels past a texture's last repeat its last (1 x 1) level.
+        levels: (T,) int64 how many levels each texture has.
+        finest: (T,) float64 the finest significant spatial frequency of level 0, cycles per
+            texel (at most 0.5).
+        mean_rgb: (T, 3) float32 mean linear RGB of each source image.
+
+    The textures' names stay with the scene (Database.texture_names): strings do not pass into
+    parallel kernels.
+    """
+
+    texels: np.ndarray
+    level: np.ndarray
+    levels: np.ndarray
+    finest: np.ndarray
+    mean_rgb: np.ndarray
+
+
+#: How a texture is filtered to its footprint (services.rig.options.TEXTURE_FILTERS), in the
+#: order whose index the kernels get (FrameConstants.texture_filter).
+TEXTURE_FILTERS = ("fade", "mipmap", "both")
+
+
 class FrameConstants(NamedTuple):
     """What every kernel of one channel's frame needs to know of the view and the scene's
     backdrop, computed once per frame (geometry.view.frame_constants).
@@ -97,6 +127,11 @@ class FrameConstants(NamedTuple):
             geometry.view.MIN_HEIGHT_ABOVE_EARTH).
         sky, earth: (3,) float32 linear RGB of the sky and the earth plane.
         world_to_eye: (3, 3) float64, as View.world_to_eye.
+        looks: (L, LOOK_SLOTS) float64 the scene's look table (scene/surfaces.py).
+        texels, tex_level, tex_levels, tex_finest: the scene's TextureStore's texels, level,
+            levels and finest, flat: numba's parallel loops take the fields of a tuple
+            argument, not of a tuple nested in it.
+        texture_filter: index of RenderOptions.texture_filter in TEXTURE_FILTERS.
     """
 
     width: int
@@ -110,6 +145,12 @@ class FrameConstants(NamedTuple):
     sky: np.ndarray
     earth: np.ndarray
     world_to_eye: np.ndarray
+    looks: np.ndarray
+    texels: np.ndarray
+    tex_level: np.ndarray
+    tex_levels: np.ndarray
+    tex_finest: np.ndarray
+    texture_filter: int
 
 
 @dataclass(frozen=True)
@@ -166,6 +207,12 @@ class Polygons:
             another face (scene "on") carry that face's plane bit for bit.
         layer: (N,) int16 declared layer; where two features are at exactly the same depth
             (coplanar, sharing one plane) the higher layer is seen.
+        look: (N,) int32 row of the database's look table (scene/surfaces.py), -1 for a plain
+            face; None when every polygon of the frame is plain (then colour is all there is).
+        surface: (N, 3, 4) float64 with look: the face's texture-plane coordinates u, v
+            (metres) and its light (Gouraud faces; 1 otherwise), each as G . p + k of the eye
+            point p on the face (rows (Gx, Gy, Gz, k)); colour is then the unlit colour of
+            a Gouraud face.
     """
 
     verts: np.ndarray
@@ -175,12 +222,16 @@ class Polygons:
     feature_id: np.ndarray
     plane: np.ndarray
     layer: np.ndarray
+    look: np.ndarray | None = None
+    surface: np.ndarray | None = None
 
     def take(self, idx: np.ndarray, verts: np.ndarray, start: np.ndarray) -> Polygons:
         """New polygons with the given vertices and the attributes of polygons idx."""
         return Polygons(verts=verts, start=start, colour=self.colour[idx],
                         opacity=self.opacity[idx], feature_id=self.feature_id[idx],
-                        plane=self.plane[idx], layer=self.layer[idx])
+                        plane=self.plane[idx], layer=self.layer[idx],
+                        look=None if self.look is None else self.look[idx],
+                        surface=None if self.surface is None else self.surface[idx])
 
     @property
     def polygon_count(self) -> int:
@@ -199,6 +250,11 @@ class ScreenPolygons(NamedTuple):
         opacity: (N,) float32; 1 is opaque.
         feature_id: (N,) int32 identity of the source face.
         layer: (N,) int16 declared layer (Polygons.layer).
+        look: (N,) int32 row of the database's look table, -1 for a plain polygon; an empty
+            array when every polygon of the frame is plain (kernels then never read it).
+        surface: (N, 9) float64 with look: Polygons.surface's u, v and light times 1/z, as
+            screen planes (A, B, C) each (value / z = A sx + B sy + C), so that
+            value = (A sx + B sy + C) / (1/z) at screen point (sx, sy): perspective-correct.
     """
 
     fixed: np.ndarray
@@ -208,6 +264,13 @@ class ScreenPolygons(NamedTuple):
     opacity: np.ndarray
     feature_id: np.ndarray
     layer: np.ndarray
+    look: np.ndarray = np.full(0, -1, np.int32)
+    surface: np.ndarray = np.zeros((1, 9))
+
+    @property
+    def textured(self) -> bool:
+        """Some polygon has a look (a texture or smooth shading)."""
+        return bool(self.look.shape[0] > 0 and (self.look >= 0).any())
 
     @property
     def polygon_count(self) -> int:

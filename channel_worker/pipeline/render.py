@@ -60,7 +60,7 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint,
     with _threads(options.threads):
         with clock("view"):
             view = make_view(channel, eyepoint)
-            frame = frame_constants(view, scene, options.sample_offsets())
+            frame = frame_constants(view, scene, options.sample_offsets(), options.texture_filter)
         atmosphere = (scene.terrain is not None or scene.haze is not None
                       or scene.clouds is not None or scene.fog is not None)
         if options.renderer == "scanline" and atmosphere:

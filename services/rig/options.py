@@ -50,6 +50,17 @@ FILTERS: dict[str, str] = {
     "gaussian": "sigma 0.5 pixel, cut at 1.5: also reads the 8 neighbouring pixels' samples",
 }
 
+#: How a texture is filtered to a pixel's footprint (implemented by the resolve stage's
+#: texturing; docs/textures.md).
+TEXTURE_FILTERS: dict[str, str] = {
+    "fade": "each texture's amplitude fades as its finest frequency nears the pixel's sampling "
+            "rate (the texture patent's anti-aliasing); one bilinear read per texture",
+    "mipmap": "trilinear read from a pre-filtered pyramid at the pixel's footprint "
+              "(Williams, Pyramidal parametrics); two bilinear reads per texture",
+    "both": "a pyramid level one finer than mipmap's, faded as it nears the sampling rate: "
+            "sharper than mipmap, without its aliasing",
+}
+
 #: Visibility renderers by name.
 RENDERERS: dict[str, str] = {
     "subarea": "the sub-area, multi-sample renderer of EP 0611020 (the product)",
@@ -79,6 +90,7 @@ class RenderOptions:
         threads: worker threads for the parallel kernels; 0 takes every core numba was
             started with.
         renderer: visibility renderer (RENDERERS).
+        texture_filter: how textures are filtered to the pixel's footprint (TEXTURE_FILTERS).
     """
 
     samples: str = "rgss4"
@@ -92,11 +104,13 @@ class RenderOptions:
     with_range: bool = True
     threads: int = 0
     renderer: str = "subarea"
+    texture_filter: str = "fade"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "samples", _pattern_name(self.samples))
         _choice("filter", self.filter, FILTERS)
         _choice("renderer", self.renderer, RENDERERS)
+        _choice("texture_filter", self.texture_filter, TEXTURE_FILTERS)
         for name, lo, hi in (("subarea", 1, 256), ("max_translucent", 1, 15), ("terrain_bias", -4, 4),
                              ("fog_table_subdivision", 1, 64), ("threads", 0, 1024)):
             value = getattr(self, name)
@@ -162,7 +176,7 @@ def add_render_arguments(parser: argparse.ArgumentParser, *, renderer: bool = Fa
                          with_range: bool = False) -> None:
     """The options as command-line flags (--samples, --filter, --subarea, --max-translucent,
     --terrain-bias, --haze/--no-haze, --clouds/--no-clouds, --fog-table-subdivision,
-    --threads; --renderer and --range/--no-range where the command has a use for them).
+    --texture-filter, --threads; --renderer and --range/--no-range where the command has a use for them).
 
     Every flag defaults to None, "not given": from_arguments then keeps the value of the base
     options (a rig file's, or the defaults).
@@ -188,6 +202,8 @@ def add_render_arguments(parser: argparse.ArgumentParser, *, renderer: bool = Fa
     group.add_argument("--fog-table-subdivision", type=int, default=None,
                        help="layered fog table entries per sample-plane spacing, 1..64; "
                             f"default {d.fog_table_subdivision}")
+    group.add_argument("--texture-filter", default=None, choices=list(TEXTURE_FILTERS),
+                       help=f"texture filtering to the pixel footprint; default {d.texture_filter}")
     group.add_argument("--threads", type=int, default=None,
                        help="threads for the parallel kernels (0: every core); default 0")
     if renderer:

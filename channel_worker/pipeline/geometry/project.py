@@ -34,7 +34,7 @@ def project(polys: Polygons, view: View) -> ScreenPolygons:
     a = nx / (sx_scale * d)
     b = ny / (sy_scale * d)
     c = (nz - nx * sx_off / sx_scale - ny * sy_off / sy_scale) / d
-    return ScreenPolygons(
+    screen = ScreenPolygons(
         fixed=out_fixed[:v_out],
         start=out_start[:n_out + 1].copy(),
         inv_z=np.column_stack([a, b, c]),
@@ -43,3 +43,15 @@ def project(polys: Polygons, view: View) -> ScreenPolygons:
         feature_id=polys.feature_id[src],
         layer=polys.layer[src],
     )
+    if polys.look is None or polys.surface is None:
+        return screen
+    # value = G . p + k on the face; with p = z (tx, ty, 1) and tx, ty affine in the screen
+    # position, value / z = G . (tx, ty, 1) + k / z is affine in (sx, sy) too: numerators
+    # over the 1/z plane, evaluated per sample (perspective-correct, any screen rotation).
+    maps = polys.surface[src]
+    gx, gy, gz, k = maps[..., 0], maps[..., 1], maps[..., 2], maps[..., 3]
+    num = np.empty((n_out, 3, 3))
+    num[..., 0] = gx / sx_scale + k * a[:, None]
+    num[..., 1] = gy / sy_scale + k * b[:, None]
+    num[..., 2] = gz - gx * sx_off / sx_scale - gy * sy_off / sy_scale + k * c[:, None]
+    return screen._replace(look=polys.look[src], surface=num.reshape(n_out, 9))

@@ -1,4 +1,5 @@
-"""World -> eye transform of the drawn instances, in float64, and flat lighting."""
+"""World -> eye transform of the drawn instances, in float64, flat lighting, and the faces'
+looks (textures, Gouraud light) in the eye frame."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from channel_worker.pipeline.contract import DrawList, Polygons, View
 from channel_worker.pipeline.scene.database import Database
 
 from ._transform_kernels import DrawnInstances, transform_kernel
+from .surface import eye_surfaces
 
 
 def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
@@ -44,6 +46,12 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
     transform_kernel(drawn, table, np.asarray(database.sun, np.float64),
                      (eye_verts, normal, sun_dot, d))
     light = database.ambient + (1.0 - database.ambient) * np.clip(sun_dot, 0.0, 1.0)
+    look, surface = eye_surfaces(database, face_rows, face_inst, to_eye_rot, draws.rotation, rel)
+    if look is not None:
+        # A Gouraud face's colour stays unlit: its light varies over it (surface row 2).
+        smooth = look >= 0
+        smooth[smooth] = database.looks[look[smooth], 0] != 0.0
+        light[smooth] = 1.0
 
     sizes = table.face_size[face_rows]
     start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
@@ -56,6 +64,8 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
         feature_id=ids.astype(np.int32),
         plane=np.column_stack([normal, d]),
         layer=table.layer[face_rows],
+        look=look,
+        surface=surface,
     )
 
 

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from channel_worker.pipeline.contract import FrameConstants, View, subpixel_offsets
+from channel_worker.pipeline.contract import TEXTURE_FILTERS, FrameConstants, View, subpixel_offsets
 from channel_worker.pipeline.scene.database import Database
 from services.rig.frame import ChannelSpec, Eyepoint, check_channel, check_eyepoint, hpr_matrix
 
@@ -84,13 +84,15 @@ def height_above_earth(database: Database, view: View) -> float:
     return max(float(view.eye[2]) - database.earth_height, MIN_HEIGHT_ABOVE_EARTH)
 
 
-def frame_constants(view: View, database: Database, offsets: np.ndarray) -> FrameConstants:
+def frame_constants(view: View, database: Database, offsets: np.ndarray,
+                    texture_filter: str = TEXTURE_FILTERS[0]) -> FrameConstants:
     """The per-frame constants every kernel of the channel takes (contract.FrameConstants).
 
     Args:
         view: the channel's view for this frame.
         database: for the sky and earth colours and the earth plane's height.
         offsets: (S, 2) sample positions inside the pixel (RenderOptions.sample_offsets()).
+        texture_filter: RenderOptions.texture_filter.
     """
     offsets = np.ascontiguousarray(offsets, np.float64)
     return FrameConstants(
@@ -101,4 +103,7 @@ def frame_constants(view: View, database: Database, offsets: np.ndarray) -> Fram
         dz_row=earth_dz_row(view), height_above=height_above_earth(database, view),
         sky=np.ascontiguousarray(database.sky_colour, np.float32),
         earth=np.ascontiguousarray(database.earth_colour, np.float32),
-        world_to_eye=np.ascontiguousarray(view.world_to_eye, np.float64))
+        world_to_eye=np.ascontiguousarray(view.world_to_eye, np.float64),
+        looks=database.looks, texels=database.textures.texels, tex_level=database.textures.level,
+        tex_levels=database.textures.levels, tex_finest=database.textures.finest,
+        texture_filter=TEXTURE_FILTERS.index(texture_filter))

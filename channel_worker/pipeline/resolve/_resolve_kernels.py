@@ -15,6 +15,7 @@ from channel_worker.pipeline.fog.fog import fog_cos
 from channel_worker.pipeline.jit import borrowing
 
 from .shading import earth_range, eye_ray, flat_colour, polygon_colour, sample_point, shade_sample
+from .texturing import varies
 
 #: Marks a sub-area whose samples do not all see one thing (not a feature identity).
 _MIXED = -100
@@ -63,8 +64,8 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
             break
     if uniform < 0 and uniform != _MIXED:
         uniform = backdrop if backdrop != 0 else _MIXED
-    if sh.by_range:
-        uniform = _MIXED  # hazed, fogged or clouded colours vary with range
+    if sh.by_range or (uniform >= 0 and varies(sh, uniform)):
+        uniform = _MIXED  # hazed, fogged, clouded, textured or Gouraud colours vary
     if uniform != _MIXED and not want_range:
         cr, cg, cb = flat_colour(sh, uniform)
         for y in range(ty0, ty1):
@@ -98,19 +99,23 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                         if t_cnt[base + s] != 0:
                             same = False
                             break
+                if same and f0 >= 0 and varies(sh, f0):
+                    same = False  # textured or Gouraud: shaded per sample, like an edge
                 if same:
                     if f0 >= 0 and sh.by_range:
                         iz = 0.0
                         for s in range(s_count):
                             iz += o_iz[base + s]
-                        rx = ((x + 0.5) - m[1]) / m[0]
-                        ry = ((y + 0.5) - m[3]) / m[2]
+                        cx = x + 0.5
+                        cy = y + 0.5
+                        rx = (cx - m[1]) / m[0]
+                        ry = (cy - m[3]) / m[2]
                         ray = math.sqrt(rx * rx + ry * ry + 1.0)
                         cos_ax = 0.0
                         if sh.fogged:
                             cos_ax = fog_cos(sh.air, rx, ry, ray)
                         # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
-                        cr, cg, cb = polygon_colour(sh, f0, y, x, ray * s_count / iz,
+                        cr, cg, cb = polygon_colour(sh, f0, y, x, (cx, cy), ray * s_count / iz,
                                                     (dz[0] * rx + dz[1] * ry + dz[2]) / ray, cos_ax)
                     elif bg_only:
                         cr = background.rgb[y, x, 0]
@@ -149,6 +154,8 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                 if sh.by_range or want_range:
                     sx, sy = sample_point(frame, x, y, s)
                     rx, ry, ray, sin_el, cos_ax = eye_ray(frame, sh, sx, sy)
+                elif sh.textured:
+                    sx, sy = sample_point(frame, x, y, s)
                 n_trans = t_cnt[i] if any_translucent else 0
                 r, g, b = shade_sample(sh, y, x, (sx, sy), (ray, sin_el, cos_ax), f, n_trans, t_id,
                                        i, (r, g, b))
@@ -213,7 +220,8 @@ def _box_row(y, store, frame, background, sh, out_rgb, out_range):
     inv_s = 1.0 / s_count
     for x in range(w):
         f0 = store.opaque[y, x, 0]
-        uniform = not (sh.by_range or f0 == BACKGROUND_ID)  # those vary per sample / pixel
+        # Those vary per sample or pixel: haze, fog, clouds, the background, a look.
+        uniform = not (sh.by_range or f0 == BACKGROUND_ID or (f0 >= 0 and varies(sh, f0)))
         for s in range(s_count):
             if not uniform or store.opaque[y, x, s] != f0 or store.trans_count[y, x, s] != 0:
                 uniform = False

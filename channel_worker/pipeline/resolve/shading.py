@@ -28,6 +28,8 @@ from channel_worker.pipeline.contract import (
 from channel_worker.pipeline.fog.fog import fog_blend, fog_cos
 from channel_worker.pipeline.jit import borrowing
 
+from .texturing import surface_colour
+
 
 class Shading(NamedTuple):
     """What the shading of a sample reads, for one frame.
@@ -43,6 +45,15 @@ class Shading(NamedTuple):
         by_range: haze, fog or clouds: a polygon's colour depends on its range, so every
             sample's ray is needed.
         fogged: the air holds fog (its axis cosine is needed per ray).
+        textured: some polygon has a look (ScreenPolygons.textured); else look and surface
+            are never read.
+        look, surface: ScreenPolygons.look and .surface.
+        looks, texture_filter: FrameConstants' (the scene's look table, the filter's index).
+        texels, level, levels, finest: the scene's TextureStore's (FrameConstants.texels, ...)
+            under the store's names, so the texture reads take the Shading as their store.
+        spacing: the samples' mean spacing in pixels, 1 / sqrt(samples per pixel): a
+            textured face is shaded per sample, each sample standing for that much of the
+            pixel (texturing.surface_colour).
     """
 
     colour: np.ndarray
@@ -56,6 +67,16 @@ class Shading(NamedTuple):
     cloud: np.ndarray
     by_range: bool
     fogged: bool
+    textured: bool
+    look: np.ndarray
+    surface: np.ndarray
+    looks: np.ndarray
+    texture_filter: int
+    texels: np.ndarray
+    level: np.ndarray
+    levels: np.ndarray
+    finest: np.ndarray
+    spacing: float
 
 
 def shading(screen: ScreenPolygons, frame: FrameConstants, background: Background) -> Shading:
@@ -64,7 +85,9 @@ def shading(screen: ScreenPolygons, frame: FrameConstants, background: Backgroun
     fogged = bool(air[F_ON] != 0.0)
     return Shading(screen.colour, screen.opacity, screen.inv_z, frame.sky, frame.earth,
                    background.rgb, air, bool(background.cloud_on), background.cloud,
-                   bool(air[0] != 0.0 or fogged or background.cloud_on), fogged)
+                   bool(air[0] != 0.0 or fogged or background.cloud_on), fogged,
+                   screen.textured, screen.look, screen.surface, frame.looks, frame.texture_filter,
+                   frame.texels, frame.tex_level, frame.tex_levels, frame.tex_finest, 1.0 / math.sqrt(frame.offsets.shape[0]))
 
 
 # Not inlined: inlined at its three call sites it tripled the compile of the fused resolve
@@ -122,10 +145,13 @@ def earth_range(frame, rx, ry):
 
 
 @njit(cache=True, inline="always")
-def polygon_colour(sh, p, y, x, range_m, sin_el, cos_ax):
-    """Polygon p's colour at pixel (x, y), seen through the air at range_m when the frame has
-    any (sh.by_range)."""
+def polygon_colour(sh, p, y, x, point, range_m, sin_el, cos_ax):
+    """Polygon p's colour at screen point (sx, sy) of pixel (x, y): its surface there
+    (texturing.surface_colour: textures, Gouraud light), seen through the air at range_m
+    when the frame has any (sh.by_range)."""
     r, g, b = sh.colour[p, 0], sh.colour[p, 1], sh.colour[p, 2]
+    if sh.textured:
+        r, g, b = surface_colour(sh, p, point[0], point[1], r, g, b)
     if sh.by_range:
         return through_air(sh.air, sh.cloud_on, sh.cloud, y, x, range_m, sin_el, cos_ax, r, g, b)
     return r, g, b
@@ -135,7 +161,8 @@ def polygon_colour(sh, p, y, x, range_m, sin_el, cos_ax):
 def flat_colour(sh, f):
     """The unlit-by-range colour of a feature (f >= 0), the earth plane (EARTH_ID) or the sky
     (SKY_ID): what a pixel takes when every sample sees that one thing and nothing varies with
-    range. Not for BACKGROUND_ID, whose colour is per pixel."""
+    range. Not for BACKGROUND_ID, whose colour is per pixel, nor for a polygon whose colour
+    varies over it (texturing.varies)."""
     if f >= 0:
         return sh.colour[f, 0], sh.colour[f, 1], sh.colour[f, 2]
     if f == EARTH_ID:
@@ -166,7 +193,7 @@ def shade_sample(sh, y, x, point, ray, f, n_trans, t_id, i, acc):
         if sh.by_range:
             # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
             rng = length / (sh.inv_z[p, 0] * sx + (sh.inv_z[p, 1] * sy + sh.inv_z[p, 2]))
-        cr, cg, cb = polygon_colour(sh, p, y, x, rng, sin_el, cos_ax)
+        cr, cg, cb = polygon_colour(sh, p, y, x, point, rng, sin_el, cos_ax)
         r += a * cr
         g += a * cg
         b += a * cb
@@ -175,7 +202,7 @@ def shade_sample(sh, y, x, point, ray, f, n_trans, t_id, i, acc):
         rng = 0.0
         if sh.by_range:
             rng = length / (sh.inv_z[f, 0] * sx + (sh.inv_z[f, 1] * sy + sh.inv_z[f, 2]))
-        cr, cg, cb = polygon_colour(sh, f, y, x, rng, sin_el, cos_ax)
+        cr, cg, cb = polygon_colour(sh, f, y, x, point, rng, sin_el, cos_ax)
     elif f == BACKGROUND_ID:
         cr, cg, cb = sh.bg_rgb[y, x, 0], sh.bg_rgb[y, x, 1], sh.bg_rgb[y, x, 2]
     elif f == EARTH_ID:

@@ -8,12 +8,15 @@ their own scene types (atmosphere.py, terrain/).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
 from .atmosphere import Clouds, Fog, Haze
+from .surfaces import LOOK_SLOTS, FaceSurfaces, plain_surfaces
+from .textures import TextureStore, empty_store
 from .terrain.database import TerrainDatabase
 
 
@@ -34,6 +37,8 @@ class Model:
         plane_vertex: (F,) int64 vertex whose position fixes the face's plane offset: its own
             first vertex, or the first vertex of the face it lies on, so that coplanar faces
             share one plane bit for bit.
+        surface: the faces' texture codes and smooth shading (surfaces.FaceSurfaces), or None
+            when every face is one flat colour.
     """
 
     name: str
@@ -47,12 +52,15 @@ class Model:
     radius: float
     layer: np.ndarray | None = None
     plane_vertex: np.ndarray | None = None
+    surface: FaceSurfaces | None = None
 
     def __post_init__(self) -> None:
         if self.layer is None:
             object.__setattr__(self, "layer", np.zeros(self.face_count, np.int16))
         if self.plane_vertex is None:
             object.__setattr__(self, "plane_vertex", self.face_index[self.face_start[:-1]].astype(np.int64))
+        if self.surface is None:
+            object.__setattr__(self, "surface", plain_surfaces(self.face_count))
 
     @property
     def face_count(self) -> int:
@@ -79,6 +87,7 @@ class FaceTable(NamedTuple):
     local_face: np.ndarray  # (F,) int64 index of the face within its model
     layer: np.ndarray  # (F,) int16
     plane_xyz: np.ndarray  # (F, 3) float64 model metres, the point fixing each face's plane
+    surface: FaceSurfaces  # every face's look, texture map and Gouraud terms (surfaces.py)
 
     @staticmethod
     def of(models: tuple[Model, ...]) -> FaceTable:
@@ -101,6 +110,7 @@ class FaceTable(NamedTuple):
                         else np.concatenate([np.arange(m.face_count) for m in models]).astype(np.int64)),
             layer=np.zeros(0, np.int16) if empty else np.concatenate([m.layer for m in models]).astype(np.int16),
             plane_xyz=np.zeros((0, 3)) if empty else np.concatenate([m.vertices[m.plane_vertex] for m in models]),
+            surface=FaceSurfaces.concatenate([m.surface for m in models if m.surface is not None]),
         )
 
 
@@ -125,6 +135,10 @@ class Database:
         terrain_margin_m: a polygon within this height above or below the terrain surface is
             drawn in front of it (a runway on its pad), metres.
         haze, clouds, fog: the scene's atmosphere (atmosphere.py), each None when absent.
+        textures: the texture stores the scene's texture codes name (textures.py).
+        texture_names: their names in the scene file, in store order.
+        looks: (L, surfaces.LOOK_SLOTS) float64 every distinct face look (texture code and
+            smooth shading) that FaceSurfaces.look indexes (surfaces.py).
     """
 
     models: tuple[Model, ...]
@@ -145,6 +159,9 @@ class Database:
     haze: Haze | None = None
     clouds: Clouds | None = None
     fog: Fog | None = None
+    textures: TextureStore = dataclasses.field(default_factory=empty_store)
+    texture_names: tuple[str, ...] = ()
+    looks: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((1, LOOK_SLOTS)))
 
     @property
     def feature_count(self) -> int:

@@ -16,6 +16,15 @@ from services.rig.frame import hpr_matrix
 
 from .atmosphere import KOSCHMIEDER, MAX_FOG_PLANES, Clouds, Fog, Haze, cloud_layer
 from .database import Database, FaceTable, Model
+from .surfaces import (
+    DEFAULT_CREASE_DEG,
+    CodeParser,
+    FaceSurfaces,
+    gouraud_basis,
+    texture_axes,
+    vertex_normals,
+)
+from .textures import TextureStore, build_store, bundled_texture_path, empty_store, load_image, procedural
 
 FORMAT = "ig-scene/1"
 _COLOUR = re.compile(r"^#[0-9a-fA-F]{6}$")
@@ -75,6 +84,7 @@ class _Parser:
     def __init__(self, source: str, base_dir: Path) -> None:
         self.source = source
         self.base_dir = base_dir
+        self.codes = CodeParser(self.fail, self.number, {})
 
     def fail(self, where: str, message: str) -> SceneError:
         return SceneError(f"{self.source}: {where}: {message}")
@@ -112,7 +122,8 @@ class _Parser:
 
     def database(self, doc: Any) -> Database:
         doc = self.obj(doc, "", {"format", "sky", "earth", "models", "instances"},
-                       {"name", "lighting", "terrain", "haze", "clouds", "fog"})
+                       {"name", "lighting", "terrain", "haze", "clouds", "fog", "textures",
+                        "texture_codes"})
         if doc["format"] != FORMAT:
             raise self.fail("format", f"{_show(doc['format'])} is not {FORMAT!r}")
         sky = self.obj(doc["sky"], "sky", {"colour"}, set())
@@ -128,6 +139,9 @@ class _Parser:
         models_doc = doc["models"]
         if not isinstance(models_doc, dict):
             raise self.fail("models", f"expected an object of models, got {_show(models_doc)}")
+        store, texture_index = self.textures(doc.get("textures"))
+        self.codes = CodeParser(self.fail, self.number, texture_index)
+        self.codes.parse(doc.get("texture_codes"))
         models = [self.model(name, m) for name, m in models_doc.items()]
         index = {m.name: i for i, m in enumerate(models)}
 
@@ -169,7 +183,46 @@ class _Parser:
             haze=self.haze(doc.get("haze")),
             clouds=self.clouds(doc.get("clouds")),
             fog=self.fog(doc.get("fog")),
+            textures=store,
+            texture_names=tuple(texture_index),
+            looks=self.codes.table(),
         )
+
+    def textures(self, doc: Any) -> tuple[TextureStore, dict[str, int]]:
+        """The optional "textures" key: name -> an image file (relative to the scene), a
+        bundled texture or a procedural one, all in one store (textures.build_store)."""
+        if doc is None:
+            return empty_store(), {}
+        if not isinstance(doc, dict) or not doc:
+            raise self.fail("textures", f"expected an object of named textures, got {_show(doc)}")
+        images, names = [], []
+        for name, spec in doc.items():
+            where = f"textures.{name}"
+            spec = self.obj(spec, where, set(), {"image", "bundled", "procedural", "size", "seed"})
+            kinds = [k for k in ("image", "bundled", "procedural") if k in spec]
+            if len(kinds) != 1:
+                raise self.fail(where, "expected exactly one of \"image\", \"bundled\", \"procedural\"")
+            kind = kinds[0]
+            value = spec[kind]
+            if not isinstance(value, str):
+                raise self.fail(f"{where}.{kind}", f"expected a string, got {_show(value)}")
+            try:
+                if kind == "image":
+                    images.append(load_image(self.base_dir / value))
+                elif kind == "bundled":
+                    images.append(load_image(bundled_texture_path(value)))
+                else:
+                    size = self.number(spec.get("size", 256), f"{where}.size", 8, 1024)
+                    seed = self.number(spec.get("seed", 0), f"{where}.seed", 0, 2**31 - 1)
+                    images.append(procedural(value, int(size), int(seed)))
+            except (ValueError, OSError) as exc:
+                raise self.fail(f"{where}.{kind}", str(exc)) from exc
+            names.append(name)
+        try:
+            store = build_store(images, names)
+        except ValueError as exc:
+            raise self.fail("textures", str(exc)) from exc
+        return store, {n: i for i, n in enumerate(names)}
 
     def clouds(self, doc: Any) -> Clouds | None:
         """The optional "clouds" key: a procedural cloud layer (clouds.cloud_layer)."""
@@ -275,7 +328,7 @@ class _Parser:
 
     def model(self, name: str, doc: Any) -> Model:
         where = f"models.{name}"
-        doc = self.obj(doc, where, {"vertices", "faces"}, set())
+        doc = self.obj(doc, where, {"vertices", "faces"}, {"smooth"})
         raw = doc["vertices"]
         if not isinstance(raw, list) or len(raw) < 3:
             raise self.fail(f"{where}.vertices", f"expected a list of at least 3 [x, y, z], got {_show(raw)}")
@@ -283,6 +336,9 @@ class _Parser:
         faces = doc["faces"]
         if not isinstance(faces, list) or not faces:
             raise self.fail(f"{where}.faces", f"expected a non-empty list, got {_show(faces)}")
+        crease = self.smooth(doc.get("smooth", False), f"{where}.smooth")
+        if crease is not None:
+            faces = self.fan(faces, where)
         start: list[int] = [0]
         flat: list[int] = []
         colours: list[np.ndarray] = []
@@ -292,7 +348,8 @@ class _Parser:
         plane_vertex: list[int] = []
         for k, face in enumerate(faces):
             fwhere = f"{where}.faces[{k}]"
-            face = self.obj(face, fwhere, {"indices", "colour"}, {"opacity", "on", "layer"})
+            face = self.obj(face, fwhere, {"indices", "colour"},
+                            {"opacity", "on", "layer", "texture", "texture_plane"})
             idx = face["indices"]
             if not isinstance(idx, list) or len(idx) < 3:
                 raise self.fail(f"{fwhere}.indices", f"expected at least 3 vertex indices, got {_show(idx)}")
@@ -315,10 +372,75 @@ class _Parser:
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         centre = (lo + hi) / 2.0
         radius = float(np.sqrt(((vertices - centre) ** 2).sum(axis=1)).max())
+        surface = self.surfaces(faces, where, vertices, [flat[start[k]:start[k + 1]] for k in range(len(faces))],
+                                np.array(normals), crease)
         return Model(name, vertices, np.array(start, np.int64), np.array(flat, np.int64),
                      np.array(colours, np.float32), np.array(opacity, np.float32),
                      np.array(normals), centre, radius, np.array(layers, np.int16),
-                     np.array(plane_vertex, np.int64))
+                     np.array(plane_vertex, np.int64), surface)
+
+    def smooth(self, value: Any, where: str) -> float | None:
+        """A model's "smooth": false, true or {"crease_deg": angle}; the crease angle or None."""
+        if value is False:
+            return None
+        if value is True:
+            return DEFAULT_CREASE_DEG
+        value = self.obj(value, where, set(), {"crease_deg"})
+        return self.number(value.get("crease_deg", DEFAULT_CREASE_DEG), f"{where}.crease_deg", 0.0, 180.0)
+
+    def fan(self, faces: list, where: str) -> list:
+        """A smooth model's faces as triangles (fans from each face's first vertex): the
+        light is linear over a triangle, so its interpolation is the same however the screen
+        is turned (surfaces.py). Painted faces ("on") are refused: their layers follow face
+        indices, which the fan renumbers."""
+        out = []
+        for k, face in enumerate(faces):
+            if isinstance(face, dict) and "on" in face:
+                raise self.fail(f"{where}.faces[{k}].on", "a smooth model cannot have painted faces")
+            idx = face.get("indices") if isinstance(face, dict) else None
+            if not isinstance(idx, list) or len(idx) <= 3:
+                out.append(face)
+                continue
+            for i in range(1, len(idx) - 1):
+                out.append({**face, "indices": [idx[0], idx[i], idx[i + 1]]})
+        return out
+
+    def surfaces(self, faces: list, where: str, vertices: np.ndarray, indices: list,
+                 normals: np.ndarray, crease: float | None) -> FaceSurfaces:
+        """Each face's look, texture map and (smooth models) Gouraud terms (surfaces.py)."""
+        n = len(faces)
+        look = np.full(n, -1, np.int32)
+        tex_map = np.zeros((n, 2, 4))
+        corner_normals = vertex_normals(vertices, indices, normals, crease) if crease is not None else None
+        vnorm = np.zeros((n, 3, 3))
+        basis = np.zeros((n, 3, 3))
+        for k, face in enumerate(faces):
+            fwhere = f"{where}.faces[{k}]"
+            code = face.get("texture")
+            if code is not None and not isinstance(code, str):
+                raise self.fail(f"{fwhere}.texture", f"expected the name of a texture code, got {_show(code)}")
+            if "texture_plane" in face and code is None:
+                raise self.fail(f"{fwhere}.texture_plane", "a texture plane needs a \"texture\"")
+            row, rotation = self.codes.look(code, crease is not None, f"{fwhere}.texture")
+            look[k] = row
+            if code is not None:
+                plane = self.obj(face.get("texture_plane", {}), f"{fwhere}.texture_plane", set(),
+                                 {"origin_m", "u_axis"})
+                origin = self.vec3(plane.get("origin_m", [0.0, 0.0, 0.0]), f"{fwhere}.texture_plane.origin_m")
+                hint = self.vec3(plane["u_axis"], f"{fwhere}.texture_plane.u_axis") if "u_axis" in plane else None
+                try:
+                    u, v = texture_axes(normals[k], hint, rotation)
+                except ValueError as exc:
+                    raise self.fail(f"{fwhere}.texture_plane.u_axis", str(exc)) from exc
+                tex_map[k, 0] = [*u, -float(u @ origin)]
+                tex_map[k, 1] = [*v, -float(v @ origin)]
+            if corner_normals is not None:
+                vnorm[k] = corner_normals[k][:3]
+                try:
+                    basis[k] = gouraud_basis(vertices[indices[k][:3]])
+                except ValueError as exc:
+                    raise self.fail(f"{fwhere}.indices", str(exc)) from exc
+        return FaceSurfaces(look, tex_map, vnorm, basis)
 
     def face_layer(self, face: dict, k: int, layers: list, plane_vertex: list, flat: list,
                    start: list, vertices: np.ndarray, normals: list,
