@@ -79,31 +79,6 @@ F_COARSENED = F_ON + 23  # 1 where the table spacing was widened (MAX_TABLE), fo
 F_TABLE = F_ON + 24
 
 
-class TextureStore(NamedTuple):
-    """The scene's textures, every mip level of every one in one array (scene/textures.py builds
-    it; the kernels take it whole).
-
-    Attributes:
-        texels: (M, 3) float32 the modulation signal (colour / mean colour - 1 per channel) of
-            every level of every texture, row-major, concatenated.
-        level: (T, L, 3) int64 per texture, per level: (offset of texel (0, 0) in texels, log2
-            width, log2 height); levels past a texture's last repeat its last (1 x 1) level.
-        levels: (T,) int64 how many levels each texture has.
-        finest: (T,) float64 the finest significant spatial frequency of level 0, cycles per
-            texel (at most 0.5).
-        mean_rgb: (T, 3) float32 mean linear RGB of each source image.
-
-    The textures' names stay with the scene (Database.texture_names): strings do not pass into
-    parallel kernels.
-    """
-
-    texels: np.ndarray
-    level: np.ndarray
-    levels: np.ndarray
-    finest: np.ndarray
-    mean_rgb: np.ndarray
-
-
 #: How a texture is filtered to its footprint (services.rig.options.TEXTURE_FILTERS), in the
 #: order whose index the kernels get (FrameConstants.texture_filter).
 TEXTURE_FILTERS = ("fade", "mipmap", "both")
@@ -128,8 +103,8 @@ class FrameConstants(NamedTuple):
         sky, earth: (3,) float32 linear RGB of the sky and the earth plane.
         world_to_eye: (3, 3) float64, as View.world_to_eye.
         looks: (L, LOOK_SLOTS) float64 the scene's look table (scene/surfaces.py).
-        texels, tex_level, tex_levels, tex_finest: the scene's TextureStore's texels, level,
-            levels and finest, flat: numba's parallel loops take the fields of a tuple
+        texels, tex_level, tex_levels, tex_finest: the scene's TextureStore's (scene/textures.py)
+            texels, level, levels and finest, flat: numba's parallel loops take the fields of a tuple
             argument, not of a tuple nested in it.
         texture_filter: index of RenderOptions.texture_filter in TEXTURE_FILTERS.
     """

@@ -1,51 +1,134 @@
-"""TEMPORARY stand-in until the texture kernels land (helper branch tex)."""
+"""Per-sample texture sampling for the resolve stage: bilinear and trilinear look-ups in a
+texture store (scene/textures.py) and the fade of a texture whose finest detail approaches the
+sampling rate (*An image generator*, docs/textures.md).
+
+Coordinates are in texels of a texture's level 0, texel centres at +0.5; every texture repeats
+(its sides are powers of two, so wrapping is a mask). Coordinates arrive in float64 and are
+wrapped into one period in float64 before anything narrows: a runway's texture coordinate
+may be 1e6 texels from its origin, where float32 has no fraction left.
+"""
+
 from __future__ import annotations
+
 import math
+
 from numba import njit
+
+
+@njit(cache=True, inline="always")
+def _wrap(u, period):
+    """u modulo period (a power of two, >= 1), in [0, period] in float64. Exact: floor(u /
+    period) * period is an integer multiple of a power of two, representable for |u| < 2**52,
+    and its difference from u loses nothing (Sterbenz). The result may equal period only by
+    rounding of a tiny negative u; the caller's mask handles that texel."""
+    return u - period * math.floor(u / period)  # period >= 1: a level's side
+
+
 @njit(cache=True, inline="always")
 def texel_bilinear(store, t, level, x, y):
-    lv = min(level, store.levels[t] - 1)
-    off, lw, lh = store.level[t, lv, 0], store.level[t, lv, 1], store.level[t, lv, 2]
-    w = 1 << lw
-    h = 1 << lh
-    fx = x / (1 << lv) - 0.5
-    fy = y / (1 << lv) - 0.5
-    x0 = math.floor(fx)
-    y0 = math.floor(fy)
-    ax = fx - x0
-    ay = fy - y0
-    i0 = int(x0) & (w - 1)
-    i1 = (i0 + 1) & (w - 1)
-    j0 = int(y0) & (h - 1)
-    j1 = (j0 + 1) & (h - 1)
-    r = 0.0
-    g = 0.0
-    b = 0.0
-    for jj, wy in ((j0, 1.0 - ay), (j1, ay)):
-        for ii, wx in ((i0, 1.0 - ax), (i1, ax)):
-            k = off + jj * w + ii
-            wt = wx * wy
-            r += wt * store.texels[k, 0]
-            g += wt * store.texels[k, 1]
-            b += wt * store.texels[k, 2]
+    """Bilinear sample of texture t's level `level` at (x, y) in texels of level 0.
+
+    level is clamped to the texture's levels (0 to levels[t] - 1); (x, y) is scaled to the
+    level (an exact power-of-two scale) and wrapped, for negative and large (|x| up to
+    1e15) coordinates alike. Exact at texel centres (x = i + 0.5 in that level's texels).
+    A non-finite coordinate gives 0, no modulation: nothing sensible to sample.
+
+    Returns:
+        (r, g, b) float64 signal values.
+    """
+    last = store.levels[t] - 1
+    lv = min(max(level, 0), last)
+    offset = store.level[t, lv, 0]
+    width_log2 = store.level[t, lv, 1]
+    height_log2 = store.level[t, lv, 2]
+    width = 1 << width_log2
+    height = 1 << height_log2
+    # Level 0 texels -> this level's: divide by 2**(level 0 log2 side - this level's), exact.
+    sx = x * (width / (1 << store.level[t, 0, 1]))
+    sy = y * (height / (1 << store.level[t, 0, 2]))
+    if not (math.isfinite(sx) and math.isfinite(sy)):
+        return 0.0, 0.0, 0.0
+    u = _wrap(sx - 0.5, float(width))
+    v = _wrap(sy - 0.5, float(height))
+    x0 = int(math.floor(u))
+    y0 = int(math.floor(v))
+    fx = u - x0
+    fy = v - y0
+    # Masks keep every index inside the level whatever rounding did (u == width wraps to 0).
+    mx = width - 1
+    my = height - 1
+    c0 = x0 & mx
+    c1 = (x0 + 1) & mx
+    r0 = offset + (y0 & my) * width
+    r1 = offset + ((y0 + 1) & my) * width
+    tex = store.texels
+    w00 = (1.0 - fx) * (1.0 - fy)
+    w10 = fx * (1.0 - fy)
+    w01 = (1.0 - fx) * fy
+    w11 = fx * fy
+    r = w00 * tex[r0 + c0, 0] + w10 * tex[r0 + c1, 0] + w01 * tex[r1 + c0, 0] + w11 * tex[r1 + c1, 0]
+    g = w00 * tex[r0 + c0, 1] + w10 * tex[r0 + c1, 1] + w01 * tex[r1 + c0, 1] + w11 * tex[r1 + c1, 1]
+    b = w00 * tex[r0 + c0, 2] + w10 * tex[r0 + c1, 2] + w01 * tex[r1 + c0, 2] + w11 * tex[r1 + c1, 2]
     return r, g, b
+
+
 @njit(cache=True, inline="always")
 def texel_trilinear(store, t, x, y, lod):
-    if lod <= 0.0:
+    """Trilinear sample of texture t at (x, y) in level-0 texels (Williams' mip-mapping).
+
+    lod: log2 of the sample's footprint in level-0 texels. lod <= 0 (or NaN) samples level 0
+    bilinearly (magnification: nothing finer to blend with); at or beyond the last level,
+    the last level; between, the two bracketing levels blended linearly in lod. At an integer
+    lod the result is exactly that level's bilinear sample.
+
+    Returns:
+        (r, g, b) float64 signal values.
+    """
+    last = store.levels[t] - 1
+    if not lod > 0.0:
         return texel_bilinear(store, t, 0, x, y)
-    l0 = int(math.floor(lod))
-    f = lod - l0
-    r0, g0, b0 = texel_bilinear(store, t, l0, x, y)
-    r1, g1, b1 = texel_bilinear(store, t, l0 + 1, x, y)
+    if lod >= last:
+        return texel_bilinear(store, t, last, x, y)
+    below = int(math.floor(lod))
+    f = lod - below
+    r0, g0, b0 = texel_bilinear(store, t, below, x, y)
+    if f == 0.0:
+        return r0, g0, b0
+    r1, g1, b1 = texel_bilinear(store, t, below + 1, x, y)
     return r0 + f * (r1 - r0), g0 + f * (g1 - g0), b0 + f * (b1 - b0)
+
+
+@njit(cache=True, inline="always")
+def texture_lod(rho):
+    """The trilinear lod for a sample spacing of rho level-0 texels: log2(rho), 0 for rho <= 1
+    (magnified: level 0) and for a non-finite or non-positive rho (no footprint to speak of;
+    the fade, which sees the same rho, decides whether the texture shows at all)."""
+    if not (rho > 1.0 and math.isfinite(rho)):
+        return 0.0
+    return math.log2(rho)
+
+
 @njit(cache=True, inline="always")
 def fade_amplitude(finest, rho):
-    if not math.isfinite(rho):
+    """How much of a texture to show: 1 while its finest frequency is well under the sampling's
+    Nyquist frequency, 0 from there on, smoothstep between.
+
+    finest: the texture's finest significant frequency (cycles per level-0 texel,
+    TextureStore.finest). rho: level-0 texels per sample spacing (its sign means nothing).
+    q = 2 finest |rho| is that frequency over the Nyquist frequency of the samples; 1 for
+    q <= 0.5, 0 for q >= 1. Why fade as well as filter: trilinear filtering picks its level
+    from one spacing, but a sample's footprint is longer in some directions than others (a
+    runway at a grazing angle), and along those the level still holds detail above Nyquist,
+    which shimmers as the eye moves. A texture faded out before its finest detail reaches
+    Nyquist has nothing left to alias, and a coarser texture of the face's code carries on
+    (the patent's scheme). Non-finite rho or finest gives 0: no footprint, no texture.
+    """
+    q = 2.0 * finest * abs(rho)
+    if not math.isfinite(q):
         return 0.0
-    q = 2.0 * finest * rho
     if q <= 0.5:
         return 1.0
     if q >= 1.0:
         return 0.0
-    t = (1.0 - q) * 2.0
-    return t * t * (3.0 - 2.0 * t)
+    s = (q - 0.5) * 2.0  # in (0, 1): the span 0.5 < q < 1 mapped onto it
+    return 1.0 - s * s * (3.0 - 2.0 * s)

@@ -136,7 +136,7 @@ class Database:
             drawn in front of it (a runway on its pad), metres.
         haze, clouds, fog: the scene's atmosphere (atmosphere.py), each None when absent.
         textures: the texture stores the scene's texture codes name (textures.py).
-        texture_names: their names in the scene file, in store order.
+
         looks: (L, surfaces.LOOK_SLOTS) float64 every distinct face look (texture code and
             smooth shading) that FaceSurfaces.look indexes (surfaces.py).
     """
@@ -160,7 +160,6 @@ class Database:
     clouds: Clouds | None = None
     fog: Fog | None = None
     textures: TextureStore = dataclasses.field(default_factory=empty_store)
-    texture_names: tuple[str, ...] = ()
     looks: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((1, LOOK_SLOTS)))
 
     @property

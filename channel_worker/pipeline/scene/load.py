@@ -184,7 +184,6 @@ class _Parser:
             clouds=self.clouds(doc.get("clouds")),
             fog=self.fog(doc.get("fog")),
             textures=store,
-            texture_names=tuple(texture_index),
             looks=self.codes.table(),
         )
 
