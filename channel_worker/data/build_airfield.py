@@ -57,6 +57,7 @@ from channel_worker.data.modelling import (
     round_mm,
     square,
     statistics,
+    textured,
     wall_rect,
 )
 
@@ -70,6 +71,11 @@ TERRAIN_OUTPUT = Path(__file__).resolve().with_name("airfield_terrain.json")
 # (docs/scene-format.md: the earth is always drawn behind polygons); markings lie in the plane
 # of the pavement they are painted on and are declared "on" it (layer order, no offset).
 PAVEMENT_Z = 0.02
+# The textured grass field lies just below the pavement, above the earth plane (which is at 0,
+# like the bundled terrain's pad), and inside the pad (x -600..400, y -1300..1300).
+GRASS_Z = 0.005
+GRASS_HALF_X_M = 380.0
+GRASS_HALF_Y_M = 1250.0
 
 RUNWAY_LENGTH_M = 2000.0
 RUNWAY_WIDTH_M = 45.0
@@ -92,6 +98,7 @@ GLASS = "#5f95ad"
 CONSOLE = "#2e3236"
 BRICK = "#9c5a3f"
 BRICK_ROOF = "#5e4034"
+HOUSE_WALL = "#b88a6c"
 FIRE_RED = "#b8322a"
 TANK_WHITE = "#e7e8e4"
 STEEL = "#8c9196"
@@ -111,7 +118,7 @@ def runway() -> list[Part]:
     # The 18 end is the 36 end turned half a turn about the runway centre.
     rects = side + runway_centreline() + [(x0, x1, y0 - half_l, y1 - half_l) for x0, x1, y0, y1 in ends]
     rects += [(-x1, -x0, half_l - y1, half_l - y0) for x0, x1, y0, y1 in ends]
-    return [ground_rect(-half_w, half_w, -half_l, half_l, PAVEMENT_Z, ASPHALT),
+    return [textured(ground_rect(-half_w, half_w, -half_l, half_l, PAVEMENT_Z, ASPHALT), "runway"),
             ground_rects(rects, PAVEMENT_Z, PAINT_WHITE, on=0)]
 
 
@@ -151,12 +158,35 @@ def taxiways() -> list[Part]:
     # on; a stub's line is cut where the stub meets the taxiway.
     on_taxiway = [(TAXIWAY_X_M - 0.15, TAXIWAY_X_M + 0.15, -950.0, 950.0)]
     on_taxiway += [(x_tw0, TAXIWAY_X_M - 0.15, y - 0.15, y + 0.15) for y in (-950.0, 0.0, 950.0)]
-    parts = [ground_rects(paving, PAVEMENT_Z, CONCRETE),
+    parts = [textured(ground_rects(paving, PAVEMENT_Z, CONCRETE), "concrete"),
              ground_rects(on_taxiway, PAVEMENT_Z, PAINT_YELLOW, on=0)]
     for k, y in enumerate((-950.0, 0.0, 950.0)):
         parts.append(ground_rects([(RUNWAY_WIDTH_M / 2.0 + 5.0, x_tw0, y - 0.15, y + 0.15)],
                                   PAVEMENT_Z, PAINT_YELLOW, on=1 + k))
     return parts
+
+
+def grass() -> list[Part]:
+    """The airfield's mown grass: one textured field under the runway, taxiways and buildings
+    (GRASS_Z below the pavement), within the bundled terrain's flattened pad. Beyond it the
+    earth plane or the terrain carry on in the same green, untextured."""
+    return [textured(ground_rect(-GRASS_HALF_X_M, GRASS_HALF_X_M, -GRASS_HALF_Y_M, GRASS_HALF_Y_M,
+                                 GRASS_Z, GRASS), "grass")]
+
+
+def arched_hangar(width: float, depth: float, height: float, segments: int = 10) -> list[Part]:
+    """A hangar with a round (barrel) roof, `width` across its front (x), `depth` (y), the
+    crown `height` above the floor: a half-ellipse profile lofted front to back, shaded
+    smoothly (model "smooth"), its metal cladding textured."""
+    hw, hd = width / 2.0, depth / 2.0
+    # The cross-section in the x-z plane, in gable_building's order (counter-clockwise seen
+    # from the front): over the arch from -x to +x, then back along the floor edge.
+    ring = [(-hw * math.cos(math.pi * k / segments), height * math.sin(math.pi * k / segments))
+            for k in range(segments + 1)]
+    back = [(x, -hd, z) for x, z in ring]
+    front = [(x, hd, z) for x, z in ring]
+    sides: list[str | None] = [METAL_ROOF] * (len(ring) - 1) + [None]
+    return [textured(loft(back, front, sides, cap_a=METAL_WALL, cap_b=METAL_WALL), "metal")]
 
 
 def gable_building(width: float, depth: float, eaves: float, ridge: float, walls: str, roof: str,
@@ -288,12 +318,17 @@ def hill(seed: int, radius: float, height: float, colours: Sequence[str]) -> lis
 def build_models() -> dict[str, list[Part]]:
     """Every model of the scene as its parts, in file order."""
     models: dict[str, list[Part]] = {
+        "grass": grass(),
         "runway": runway(),
         "taxiways": taxiways(),
-        "hangar": gable_building(40.0, 50.0, 12.0, 17.0, METAL_WALL, METAL_ROOF,
-                                 door=(32.0, 10.0, DOOR)),
+        "hangar": [textured(p, "metal", colours=(METAL_WALL, METAL_ROOF))
+                   for p in gable_building(40.0, 50.0, 12.0, 17.0, METAL_WALL, METAL_ROOF,
+                                           door=(32.0, 10.0, DOOR))],
+        "arched_hangar": arched_hangar(40.0, 50.0, 17.0),
         "shed": gable_building(24.0, 30.0, 7.0, 9.5, "#c8b792", BRICK_ROOF, door=(8.0, 5.0, DOOR)),
-        "barn": gable_building(16.0, 30.0, 6.0, 11.0, BRICK, "#4e4a46", door=(5.0, 5.0, "#5b3a2a")),
+        "barn": [textured(p, "brick", colours=(BRICK,))
+                 for p in gable_building(16.0, 30.0, 6.0, 11.0, BRICK, "#4e4a46",
+                                         door=(5.0, 5.0, "#5b3a2a"))],
         "terminal": flat_roof_building(100.0, 30.0, 12.0, "#d6d0c2", "#8a8f94",
                                        band=(4.0, 9.0, "#3f566c")),
         "fire_station": flat_roof_building(40.0, 24.0, 8.0, "#d9d4c8", "#7b7f84",
@@ -305,7 +340,8 @@ def build_models() -> dict[str, list[Part]]:
         "radio_mast": radio_mast(),
         "pylon": pylon(),
         "factory": factory(),
-        "house": gable_building(10.0, 14.0, 5.0, 8.0, "#e1d6bf", "#8e3b2c"),
+        "house": [textured(p, "brick", colours=(HOUSE_WALL,))
+                  for p in gable_building(10.0, 14.0, 5.0, 8.0, HOUSE_WALL, "#8e3b2c")],
         "block_low": flat_roof_building(40.0, 30.0, 12.0, "#c7b9a3", "#6e6a66"),
         "block_mid": flat_roof_building(30.0, 30.0, 24.0, "#b3aba0", "#5f6266",
                                         band=(20.0, 22.0, "#4b5b69")),
@@ -329,6 +365,35 @@ HILLS_AT = ((-125.0, 8000.0), (-95.0, 9500.0), (-65.0, 7500.0), (-38.0, 10500.0)
 HILL_COLOURS = (("#6f8660", "#7d9169"), ("#728a6d", "#84977b"), ("#6a7f66", "#7a8d74"))
 
 
+# Textures (docs/scene-format.md "textures", docs/textures.md): the bundled photographs
+# (CC0, channel_worker/data/textures/LICENSE.md) and procedural noise for the coarse variation
+# that must survive at a distance, where the fine textures have faded.
+TEXTURES = {
+    "asphalt": {"bundled": "asphalt"},
+    "gravel": {"bundled": "gravel"},
+    "grass": {"bundled": "grass"},
+    "brick": {"bundled": "brick"},
+    "patches": {"procedural": "noise", "size": 128, "seed": 3},
+    "streaks": {"procedural": "noise", "size": 64, "seed": 8},
+}
+# Texture codes: the primary texture at its own scale, the secondary and tertiary at a common
+# coarser scale (the texture patent's fine and coarse patterns: the fine one fades with range,
+# the coarse ones carry on).
+TEXTURE_CODES = {
+    "runway": {"textures": ["asphalt", "patches", "streaks"], "intensity": 0.9, "scale_m": [8.0, 8.0],
+               "detail_scale_m": [120.0, 400.0], "amplitudes": [0.5, 0.4]},
+    "concrete": {"textures": ["gravel", "patches"], "intensity": 0.5, "scale_m": [6.0, 6.0],
+                 "detail_scale_m": [80.0, 80.0], "detail_offset_m": [17.0, 5.0], "amplitudes": [0.6, 0.0]},
+    "grass": {"textures": ["grass", "grass", "patches"], "intensity": 1.0, "scale_m": [10.0, 10.0],
+              "detail_scale_m": [60.0, 60.0], "detail_offset_m": [23.0, 9.0],
+              "amplitudes": [0.7, 0.5], "modulation": "colour"},
+    "brick": {"textures": ["brick"], "intensity": 1.0, "scale_m": [3.0, 3.0], "modulation": "colour"},
+    "metal": {"textures": ["streaks"], "intensity": 0.5, "scale_m": [1.5, 12.0]},
+}
+# Models shaded smoothly (Gouraud): the barrel roofs, and the hills' terrain-like slopes.
+SMOOTH_MODELS = {"arched_hangar"} | {f"hill_{k + 1}" for k in range(9)}
+
+
 # ---------------------------------------------------------------------------------------------
 # Placement. Positions were chosen with the bundled flight (host_sim/flight.py) so that objects
 # cross the seams in every phase; tests/channel_worker/test_bundled_scene.py keeps the two in step.
@@ -336,13 +401,16 @@ HILL_COLOURS = (("#6f8660", "#7d9169"), ("#728a6d", "#84977b"), ("#6a7f66", "#7a
 def build_instances() -> list[Instance]:
     """Every instance of the scene, in file order."""
     out = [
+        Instance("grass", (0.0, 0.0, 0.0), "airfield grass"),
         Instance("runway", (0.0, 0.0, 0.0), "runway 36/18"),
         Instance("taxiways", (0.0, 0.0, 0.0), "taxiway A and apron"),
     ]
     # East side; building fronts face west, towards the runway (heading 270).
     west = (270.0, 0.0, 0.0)
     for k, y in enumerate((-480.0, -420.0, -360.0, -300.0)):  # right seam, t = 0..8 s
-        out.append(Instance("hangar", (225.0, y, 0.0), f"hangar {k + 1}", west))
+        # Two barrel-roofed hangars (smooth shading) between gabled ones.
+        model = "arched_hangar" if k % 2 == 1 else "hangar"
+        out.append(Instance(model, (225.0, y, 0.0), f"hangar {k + 1}", west))
     # The terminal: right seam as the climb ends. Cargo sheds: the right outer edge in the descent.
     out.append(Instance("terminal", (215.0, -120.0, 0.0), "terminal", west))
     for k, y in enumerate((130.0, 170.0, 210.0)):
@@ -432,7 +500,9 @@ def build_scene() -> dict[str, Any]:
         # Sun in the south-south-west behind the departing aircraft: the faces the flight looks
         # at are lit, and east/west walls differ in shade.
         "lighting": {"sun_heading_deg": 210.0, "sun_elevation_deg": 38.0, "ambient": 0.4},
-        "models": {name: model_doc(parts) for name, parts in models.items()},
+        "textures": TEXTURES,
+        "texture_codes": TEXTURE_CODES,
+        "models": {name: model_doc(parts, smooth=name in SMOOTH_MODELS) for name, parts in models.items()},
         "instances": [instance_doc(i) for i in instances],
     }
 

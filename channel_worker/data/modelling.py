@@ -24,6 +24,7 @@ which is the world frame (x east, y north, z up) for an instance at heading = pi
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Iterable, Sequence
@@ -48,6 +49,8 @@ class Face:
     #: Index, within the model, of the face this one is painted on (scene "on"), and its layer.
     on: int | None = None
     layer: int = 1
+    #: Name of the scene's texture code the face wears (scene "texture"), or None.
+    texture: str | None = None
 
 
 @dataclass(frozen=True)
@@ -399,11 +402,21 @@ def dome(rings: Sequence[Sequence[Vec3]], apex: Vec3, colours: Sequence[str]) ->
 # ---------------------------------------------------------------------------------------------
 # Scene documents.
 
-def model_doc(parts: Sequence[Part]) -> dict[str, Any]:
+def textured(part: Part, code: str, *, colours: Sequence[str] | None = None) -> Part:
+    """The part with its faces wearing texture code `code` (those of the given colours only,
+    when colours is given: a wall's texture, not its door's)."""
+    faces = tuple(dataclasses.replace(f, texture=code) if colours is None or f.colour in colours else f
+                  for f in part.faces)
+    return dataclasses.replace(part, faces=faces)
+
+
+def model_doc(parts: Sequence[Part], *, smooth: bool = False) -> dict[str, Any]:
     """One model's JSON data.
 
     Args:
         parts: the model's parts, in order.
+        smooth: shade the model smoothly (scene "smooth": Gouraud, across edges up to the
+            loader's crease angle).
 
     Returns:
         {"vertices", "faces"}: the parts' vertices concatenated (model frame, metres) and their
@@ -422,8 +435,13 @@ def model_doc(parts: Sequence[Part]) -> dict[str, Any]:
             if f.on is not None:
                 face["on"] = f.on
                 face["layer"] = f.layer
+            if f.texture is not None:
+                face["texture"] = f.texture
             faces.append(face)
-    return {"vertices": vertices, "faces": faces}
+    doc: dict[str, Any] = {"vertices": vertices, "faces": faces}
+    if smooth:
+        doc["smooth"] = True
+    return doc
 
 
 def instance_doc(inst: Instance) -> dict[str, Any]:
@@ -474,6 +492,13 @@ def _is_leafy(value: Any) -> bool:
 _LEAF_KEYS = 4
 
 
+def _loaded_faces(model: dict[str, Any]) -> list[dict[str, Any]]:
+    """A model document's faces as the scene loader holds them: a smooth model's as triangles."""
+    if not model.get("smooth"):
+        return list(model["faces"])
+    return [face for face in model["faces"] for _ in range(len(face["indices"]) - 2)]
+
+
 def statistics(doc: dict[str, Any]) -> dict[str, int]:
     """Counts that describe a scene document.
 
@@ -483,9 +508,10 @@ def statistics(doc: dict[str, Any]) -> dict[str, int]:
     Returns:
         "models", "model_faces" (faces over all models), "instances", "instance_faces" and
         "translucent_faces" (faces, and faces with opacity < 1, over all instances together:
-        what the pipeline transforms per frame).
+        what the pipeline transforms per frame). A smooth model's faces count as the triangles
+        the loader splits them into.
     """
-    faces = {name: m["faces"] for name, m in doc["models"].items()}
+    faces = {name: _loaded_faces(m) for name, m in doc["models"].items()}
     placed = [faces[i["model"]] for i in doc["instances"]]
     return {
         "models": len(faces),

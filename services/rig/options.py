@@ -57,8 +57,8 @@ TEXTURE_FILTERS: dict[str, str] = {
             "rate (the texture patent's anti-aliasing); one bilinear read per texture",
     "mipmap": "trilinear read from a pre-filtered pyramid at the pixel's footprint "
               "(Williams, Pyramidal parametrics); two bilinear reads per texture",
-    "both": "a pyramid level one finer than mipmap's, faded as it nears the sampling rate: "
-            "sharper than mipmap, without its aliasing",
+    "both": "level 0 for as long as the fade keeps it, cross-faded into the pyramid beyond: "
+            "sharper than mipmap for textures without fine detail, never aliasing",
 }
 
 #: Visibility renderers by name.

@@ -87,7 +87,8 @@ def shading(screen: ScreenPolygons, frame: FrameConstants, background: Backgroun
                    background.rgb, air, bool(background.cloud_on), background.cloud,
                    bool(air[0] != 0.0 or fogged or background.cloud_on), fogged,
                    screen.textured, screen.look, screen.surface, frame.looks, frame.texture_filter,
-                   frame.texels, frame.tex_level, frame.tex_levels, frame.tex_finest, 1.0 / math.sqrt(frame.offsets.shape[0]))
+                   frame.texels, frame.tex_level, frame.tex_levels, frame.tex_finest,
+                   1.0 / math.sqrt(frame.offsets.shape[0]))
 
 
 # Not inlined: inlined at its three call sites it tripled the compile of the fused resolve

@@ -15,7 +15,7 @@ frequency approaches the rate at which the pixel grid samples it; the sampling r
 the screen derivatives of (u, v), exact for the homogeneous map:
 d(N / D)/dsx = (N_x - (N / D) D_x) / D. Alternatives (RenderOptions.texture_filter): a
 trilinear read of the pre-filtered pyramid at the footprint (L. Williams, *Pyramidal
-parametrics*), or a pyramid level one finer, faded.
+parametrics*), or level 0 for as long as the fade keeps it and the pyramid beyond.
 """
 
 from __future__ import annotations
@@ -100,28 +100,35 @@ def surface_colour(sh, p, sx, sy, r, g, b):
         th = rv * (1 << store.level[t, 0, 2])
         tx = (u + ou) * tw
         ty = (v + ov) * th
-        # The footprint: level-0 texels per sample spacing (the pixel's longer side over the
-        # square root of the samples per pixel: the samples supersample the texture).
-        rho = sh.spacing * max(math.sqrt((ux * tw) ** 2 + (vx * th) ** 2),
-                               math.sqrt((uy * tw) ** 2 + (vy * th) ** 2))
+        # The footprint: level-0 texels per sample spacing along the pixel's two sides (over
+        # the square root of the samples per pixel: the samples supersample the texture).
+        side_x = sh.spacing * math.sqrt((ux * tw) ** 2 + (vx * th) ** 2)
+        side_y = sh.spacing * math.sqrt((uy * tw) ** 2 + (vy * th) ** 2)
+        rho = max(side_x, side_y)
         if sh.texture_filter == _FADE:
             fade = fade_amplitude(store.finest[t], rho)
             if fade <= 0.0:
                 continue
             cr, cg, cb = texel_bilinear(store, t, 0, tx, ty)
+        elif sh.texture_filter == _MIPMAP:
+            # Guard: a degenerate footprint gives rho 0: log2 of at least 1e-30 is finite, and
+            # the read clamps the level.
+            fade = 1.0
+            cr, cg, cb = texel_trilinear(store, t, tx, ty, math.log2(max(rho, 1e-30)))
         else:
-            # Guard: rho of a face seen edge-on can be huge or, at a degenerate footprint,
-            # zero: log2 of at least 1e-30 is finite; the read clamps the level.
-            lod = math.log2(max(rho, 1e-30))
-            if sh.texture_filter == _MIPMAP:
-                fade = 1.0
-            else:
-                lod -= 1.0
-                step = 2.0 ** max(lod, 0.0)
-                fade = fade_amplitude(min(0.5, store.finest[t] * step), rho / step)
-                if fade <= 0.0:
-                    continue
-            cr, cg, cb = texel_trilinear(store, t, tx, ty, lod)
+            # Level 0 as far as the fade finds it safe, the pyramid beyond: a texture whose
+            # finest detail is coarse keeps its full sharpness to a larger footprint than
+            # mipmap's level choice (which blurs once a texel is smaller than a sample,
+            # whatever the texture holds), and never aliases where the fade would lose it.
+            keep = fade_amplitude(store.finest[t], rho)
+            fade = 1.0
+            cr, cg, cb = texel_bilinear(store, t, 0, tx, ty)
+            if keep < 1.0:
+                # Guard: as for mipmap.
+                mr, mg, mb = texel_trilinear(store, t, tx, ty, math.log2(max(rho, 1e-30)))
+                cr = keep * cr + (1.0 - keep) * mr
+                cg = keep * cg + (1.0 - keep) * mg
+                cb = keep * cb + (1.0 - keep) * mb
         amp *= fade
         sr += amp * cr
         sg += amp * cg

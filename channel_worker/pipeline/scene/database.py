@@ -16,8 +16,8 @@ import numpy as np
 
 from .atmosphere import Clouds, Fog, Haze
 from .surfaces import LOOK_SLOTS, FaceSurfaces, plain_surfaces
-from .textures import TextureStore, empty_store
 from .terrain.database import TerrainDatabase
+from .textures import TextureStore, empty_store
 
 
 @dataclass(frozen=True)
