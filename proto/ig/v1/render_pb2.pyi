@@ -7,7 +7,7 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class RenderOptions(_message.Message):
-    __slots__ = ("samples", "filter", "subarea", "max_translucent", "terrain_bias", "haze", "clouds", "fog_table_subdivision", "with_range", "threads", "renderer")
+    __slots__ = ("samples", "filter", "subarea", "max_translucent", "terrain_bias", "haze", "clouds", "fog_table_subdivision", "with_range", "threads", "renderer", "coverage")
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     FILTER_FIELD_NUMBER: _ClassVar[int]
     SUBAREA_FIELD_NUMBER: _ClassVar[int]
@@ -19,6 +19,7 @@ class RenderOptions(_message.Message):
     WITH_RANGE_FIELD_NUMBER: _ClassVar[int]
     THREADS_FIELD_NUMBER: _ClassVar[int]
     RENDERER_FIELD_NUMBER: _ClassVar[int]
+    COVERAGE_FIELD_NUMBER: _ClassVar[int]
     samples: str
     filter: str
     subarea: int
@@ -30,7 +31,8 @@ class RenderOptions(_message.Message):
     with_range: bool
     threads: int
     renderer: str
-    def __init__(self, samples: _Optional[str] = ..., filter: _Optional[str] = ..., subarea: _Optional[int] = ..., max_translucent: _Optional[int] = ..., terrain_bias: _Optional[int] = ..., haze: _Optional[bool] = ..., clouds: _Optional[bool] = ..., fog_table_subdivision: _Optional[int] = ..., with_range: _Optional[bool] = ..., threads: _Optional[int] = ..., renderer: _Optional[str] = ...) -> None: ...
+    coverage: str
+    def __init__(self, samples: _Optional[str] = ..., filter: _Optional[str] = ..., subarea: _Optional[int] = ..., max_translucent: _Optional[int] = ..., terrain_bias: _Optional[int] = ..., haze: _Optional[bool] = ..., clouds: _Optional[bool] = ..., fog_table_subdivision: _Optional[int] = ..., with_range: _Optional[bool] = ..., threads: _Optional[int] = ..., renderer: _Optional[str] = ..., coverage: _Optional[str] = ...) -> None: ...
 
 class StageTime(_message.Message):
     __slots__ = ("stage", "seconds")
