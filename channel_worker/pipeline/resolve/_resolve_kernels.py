@@ -129,7 +129,8 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                     out_rgb[y, x, 1] = cg
                     out_rgb[y, x, 2] = cb
                     continue
-            # --- analytic coverage (coverage "area") ---
+            # Where one edge crosses the pixel its exact area beats the samples' count
+            # (coverage "area", _coverage_kernels); the range still comes from the samples.
             exact = False
             if area:
                 exact, ar, ag, ab = edge_pixel(cov, frame, background, sh, o_id, t_cnt,
@@ -140,7 +141,6 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                     out_rgb[y, x, 2] = ab
                     if not want_range:
                         continue
-            # ---
             r = 0.0
             g = 0.0
             b = 0.0
@@ -241,7 +241,7 @@ def _box_row(y, store, frame, background, sh, out_rgb, out_range, cov):
                 break
         exact = False
         cr = cg = cb = 0.0
-        if not uniform and cov.on:  # analytic coverage (coverage "area")
+        if not uniform and cov.on:  # one edge across the pixel: its exact area (coverage "area")
             exact, cr, cg, cb = edge_pixel(cov, frame, background, sh, store.opaque_flat,
                                            store.count_flat, True, store.trans,
                                            (y * w + x) * s_count, x, y)
