@@ -2,6 +2,7 @@
 
     python bench/llvmpipe.py                          # approach scene, 4x MSAA, 1280 x 1024
     python bench/llvmpipe.py --frames 10 --image f.npy --json r.json
+    python bench/llvmpipe.py --scene quads            # the random quads, 640 x 480 (SCENES)
 
 bench_visibility.py runs this file in a child process (run_llvmpipe()), so that the Mesa
 environment below is set before libEGL loads and a driver crash cannot take the bench down.
@@ -41,6 +42,7 @@ import statistics
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -243,7 +245,9 @@ def render_llvmpipe(database: Database, channel: ChannelSpec, eyepoint: Eyepoint
         vbo = ctx.buffer(np.ascontiguousarray(corner[sel]).tobytes())
         draws.append((ctx.vertex_array(prog, [(vbo, "3f 4f", "in_pos", "in_rgba")]), int(layer)))
     trans_tri = np.flatnonzero(~opaque_tri)
-    trans_vbo = ctx.buffer(np.ascontiguousarray(corner[trans_tri]).tobytes())
+    # GL refuses an empty buffer: a scene without translucent faces gets one unused corner.
+    trans_vbo = ctx.buffer(np.ascontiguousarray(corner[trans_tri]).tobytes() if trans_tri.size
+                           else corner[:1].tobytes())
     trans_face = tri_face[trans_tri]
     trans_ibo = ctx.buffer(reserve=max(4, 12 * trans_tri.size))
     trans_vao = ctx.vertex_array(prog, [(trans_vbo, "3f 4f", "in_pos", "in_rgba")],
@@ -276,7 +280,8 @@ def render_llvmpipe(database: Database, channel: ChannelSpec, eyepoint: Eyepoint
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA
         ctx.depth_mask = False
-        trans_vao.render(moderngl.TRIANGLES, vertices=3 * trans_tri.size)
+        if trans_tri.size:
+            trans_vao.render(moderngl.TRIANGLES, vertices=3 * trans_tri.size)
         ctx.depth_mask = True
         ctx.copy_framebuffer(resolved, msaa)  # multi-sample resolve
         ctx.finish()
@@ -307,9 +312,10 @@ def render_llvmpipe(database: Database, channel: ChannelSpec, eyepoint: Eyepoint
 
 def run_llvmpipe(*, threads: int = 1, frames: int = 20, warmup: int = 3, samples: int = 4,
                  cpu: int | None = None, image_path: Path | None = None,
-                 timeout_s: float = 900.0) -> dict[str, Any]:
+                 timeout_s: float = 900.0, scene: str = "approach") -> dict[str, Any]:
     """Run this file in a child process with MESA_ENV and LP_NUM_THREADS=threads, pinned to
-    `cpu` (default: the lowest CPU this process may use), on the approach scene and eyepoint.
+    `cpu` (default: the lowest CPU this process may use), on a scene of SCENES with its
+    eyepoint and channel (default the approach).
 
     Never raises for a missing or failing llvmpipe: the record then has available = False and
     the reason (moderngl not installed, no EGL, the child's error output, ...).
@@ -319,7 +325,8 @@ def run_llvmpipe(*, threads: int = 1, frames: int = 20, warmup: int = 3, samples
         cpu = min(os.sched_getaffinity(0))
     with _temp_json() as out:
         cmd = [sys.executable, str(Path(__file__).resolve()), "--frames", str(frames),
-               "--warmup", str(warmup), "--samples", str(samples), "--json", str(out)]
+               "--warmup", str(warmup), "--samples", str(samples), "--json", str(out),
+               "--scene", scene]
         if cpu is not None:
             cmd += ["--cpu", str(cpu)]
         if image_path is not None:
@@ -334,6 +341,31 @@ def run_llvmpipe(*, threads: int = 1, frames: int = 20, warmup: int = 3, samples
             return {"available": False,
                     "reason": f"llvmpipe child exited {proc.returncode}: " + " | ".join(tail)}
         return json.loads(out.read_text(encoding="utf-8"))
+
+
+def _approach() -> tuple[Database, ChannelSpec, Eyepoint]:
+    from bench.scenes.approach import approach_channel, approach_eyepoint, approach_scene
+    from channel_worker.pipeline.scene.load import parse_scene
+
+    return (parse_scene(approach_scene(), source="bench approach scene"), approach_channel(),
+            approach_eyepoint())
+
+
+def _quads() -> tuple[Database, ChannelSpec, Eyepoint]:
+    from channel_worker.pipeline.scene.load import parse_scene
+    from channel_worker.testing.quads import QUADS_EYEPOINT, QUADS_FOV_DEG, quads_scene_doc
+
+    return (parse_scene(quads_scene_doc(), source="quads"),
+            ChannelSpec.symmetric("quads", 640, 480, QUADS_FOV_DEG), Eyepoint.of(*QUADS_EYEPOINT))
+
+
+#: The scenes the child can draw: name -> (database, channel, eyepoint). approach: the
+#: bench's main case (bench/scenes/approach.py); quads: the 200 random eye-facing quads of
+#: channel_worker/testing/quads.py at 640 x 480, whose exact coverage is known.
+SCENES: dict[str, Callable[[], tuple[Database, ChannelSpec, Eyepoint]]] = {
+    "approach": _approach,
+    "quads": _quads,
+}
 
 
 class _temp_json:
@@ -363,6 +395,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="LP_NUM_THREADS (default: the environment's, else 1)")
     parser.add_argument("--json", type=Path, default=None, help="write the record here")
     parser.add_argument("--image", type=Path, default=None, help="save the frame (.npy)")
+    parser.add_argument("--scene", choices=list(SCENES), default="approach",
+                        help="what to draw (default: the approach)")
     args = parser.parse_args(argv)
     for key, value in MESA_ENV.items():
         os.environ.setdefault(key, value)
@@ -372,9 +406,6 @@ def main(argv: list[str] | None = None) -> int:
     if args.cpu is not None:
         os.sched_setaffinity(0, {args.cpu})  # before Mesa starts its threads: they inherit it
 
-    from bench.scenes.approach import approach_channel, approach_eyepoint, approach_scene
-    from channel_worker.pipeline.scene.load import parse_scene
-
     try:
         import moderngl  # noqa: F401
     except ImportError as exc:
@@ -382,13 +413,14 @@ def main(argv: list[str] | None = None) -> int:
                                   "reason": f"moderngl is not installed ({exc}); "
                                             "pip install -e '.[bench]'"}
     else:
-        database = parse_scene(approach_scene(), source="bench approach scene")
+        database, channel, eyepoint = SCENES[args.scene]()
         try:
-            record = render_llvmpipe(database, approach_channel(), approach_eyepoint(),
-                                     frames=args.frames, warmup=args.warmup, samples=args.samples,
+            record = render_llvmpipe(database, channel, eyepoint, frames=args.frames,
+                                     warmup=args.warmup, samples=args.samples,
                                      image_path=args.image)
         except Exception as exc:
             record = {"available": False, "reason": f"{type(exc).__name__}: {exc}"}
+    record["scene"] = args.scene
     record["env"] = {k: os.environ.get(k) for k in (*MESA_ENV, "LP_NUM_THREADS")}
     text = json.dumps(record, indent=1)
     if args.json is not None:

@@ -77,7 +77,7 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint,
         with clock("project"):
             screen = project(polys, view)
         counters = report.counters if report is not None else {}
-        background, buffer = no_background(), None
+        background, buffer, edges = no_background(), None, None
         if options.renderer == "scanline":
             with clock("visibility"):
                 buffer = scanline_visibility(screen, frame, options, counters)
@@ -102,7 +102,7 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint,
             with clock("visibility"):
                 buffer = sample_store(screen, edges, bins, frame, background, options, counters)
         with clock("resolve"):
-            image = resolve(buffer, screen, frame, background, options, out=out)
+            image = resolve(buffer, screen, frame, background, options, edges=edges, out=out)
     if trace is not None:
         trace["screen"] = screen
         trace["buffer"] = buffer

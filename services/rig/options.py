@@ -61,6 +61,15 @@ TEXTURE_FILTERS: dict[str, str] = {
             "sharper than mipmap for textures without fine detail, never aliasing",
 }
 
+#: How the box filter weighs a pixel's features (implemented by the resolve stage,
+#: resolve/_coverage_kernels.py). Where one straight edge crosses a pixel the exact area it
+#: covers is known in closed form; the samples still decide what is seen.
+COVERAGES: dict[str, str] = {
+    "area": "the exact area where one edge crosses a pixel between two features, the samples' "
+            "count elsewhere (box filter; on random quads it halves every pattern's error)",
+    "samples": "the samples' count everywhere (each pixel the mean of its point samples)",
+}
+
 #: Visibility renderers by name.
 RENDERERS: dict[str, str] = {
     "subarea": "the sub-area, multi-sample renderer of EP 0611020 (the product)",
@@ -91,6 +100,8 @@ class RenderOptions:
             started with.
         renderer: visibility renderer (RENDERERS).
         texture_filter: how textures are filtered to the pixel's footprint (TEXTURE_FILTERS).
+        coverage: how the box filter weighs a pixel's features (COVERAGES); the tent and
+            gaussian filters always weigh samples.
     """
 
     samples: str = "rgss4"
@@ -105,12 +116,14 @@ class RenderOptions:
     threads: int = 0
     renderer: str = "subarea"
     texture_filter: str = "fade"
+    coverage: str = "area"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "samples", _pattern_name(self.samples))
         _choice("filter", self.filter, FILTERS)
         _choice("renderer", self.renderer, RENDERERS)
         _choice("texture_filter", self.texture_filter, TEXTURE_FILTERS)
+        _choice("coverage", self.coverage, COVERAGES)
         for name, lo, hi in (("subarea", 1, 256), ("max_translucent", 1, 15), ("terrain_bias", -4, 4),
                              ("fog_table_subdivision", 1, 64), ("threads", 0, 1024)):
             value = getattr(self, name)
@@ -176,7 +189,8 @@ def add_render_arguments(parser: argparse.ArgumentParser, *, renderer: bool = Fa
                          with_range: bool = False) -> None:
     """The options as command-line flags (--samples, --filter, --subarea, --max-translucent,
     --terrain-bias, --haze/--no-haze, --clouds/--no-clouds, --fog-table-subdivision,
-    --texture-filter, --threads; --renderer and --range/--no-range where the command has a use for them).
+    --texture-filter, --threads, --coverage; --renderer and --range/--no-range where the command
+    has a use for them).
 
     Every flag defaults to None, "not given": from_arguments then keeps the value of the base
     options (a rig file's, or the defaults).
@@ -206,6 +220,9 @@ def add_render_arguments(parser: argparse.ArgumentParser, *, renderer: bool = Fa
                        help=f"texture filtering to the pixel footprint; default {d.texture_filter}")
     group.add_argument("--threads", type=int, default=None,
                        help="threads for the parallel kernels (0: every core); default 0")
+    group.add_argument("--coverage", default=None, choices=list(COVERAGES),
+                       help="box filter: exact area of a pixel's single edge (area) or the "
+                            f"samples' count (samples); default {d.coverage}")
     if renderer:
         group.add_argument("--renderer", default=None, choices=list(RENDERERS),
                            help="visibility renderer (scanline: the cross-check, --samples centre); "

@@ -14,6 +14,7 @@ from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, SKY_ID
 from channel_worker.pipeline.fog.fog import fog_cos
 from channel_worker.pipeline.jit import borrowing
 
+from ._coverage_kernels import edge_pixel
 from .shading import earth_range, eye_ray, flat_colour, polygon_colour, sample_point, shade_sample
 from .texturing import varies
 
@@ -31,6 +32,8 @@ class StoreIn(NamedTuple):
         trans_count: (H, W, S) uint8 how many of them are meaningful.
         polygon_range: (H, W) float32 nearest polygon's range per pixel (when want_range).
         want_range: compute each pixel's range.
+        opaque_flat, count_flat: opaque and trans_count flattened (sample (y W + x) S + s),
+            as edge_pixel reads a pixel's samples.
     """
 
     opaque: np.ndarray
@@ -38,17 +41,21 @@ class StoreIn(NamedTuple):
     trans_count: np.ndarray
     polygon_range: np.ndarray
     want_range: bool
+    opaque_flat: np.ndarray
+    count_flat: np.ndarray
 
 
 @borrowing
 def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_range, sc, out_rgb,
-                out_range):
+                out_range, cov, area):
     """The pixels of one sub-area from its sample store sc (visibility's Scratch): each
     sample shaded, averaged over the pixel; with want_range the pixel's nearest range.
 
     rect: (x0, y0, x1, y1) the sub-area's pixels; backdrop: EARTH_ID or SKY_ID if every
     uncovered sample of it sees that, else 0 (the horizon crosses it, or the frame has a
-    background).
+    background). cov: the frame's Coverage (_coverage_kernels); area: take single-edge pixels'
+    exact area (cov.on, and the sub-area's list has a partially covering feature: else no
+    edge crosses any of its pixels).
     """
     tx0, ty0, tx1, ty1 = rect
     tw = tx1 - tx0
@@ -127,6 +134,18 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                     out_rgb[y, x, 1] = cg
                     out_rgb[y, x, 2] = cb
                     continue
+            # Where one edge crosses the pixel its exact area beats the samples' count
+            # (coverage "area", _coverage_kernels); the range still comes from the samples.
+            exact = False
+            if area:
+                exact, ar, ag, ab = edge_pixel(cov, frame, background, sh, o_id, t_cnt,
+                                               any_translucent, t_id, base, x, y)
+                if exact:
+                    out_rgb[y, x, 0] = ar
+                    out_rgb[y, x, 1] = ag
+                    out_rgb[y, x, 2] = ab
+                    if not want_range:
+                        continue
             r = 0.0
             g = 0.0
             b = 0.0
@@ -167,9 +186,10 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                         near_range = min(near_range, background.range_m[y, x])
                     elif f == EARTH_ID:
                         near_range = min(near_range, earth_range(frame, rx, ry))
-            out_rgb[y, x, 0] = r * inv_s
-            out_rgb[y, x, 1] = g * inv_s
-            out_rgb[y, x, 2] = b * inv_s
+            if not exact:
+                out_rgb[y, x, 0] = r * inv_s
+                out_rgb[y, x, 1] = g * inv_s
+                out_rgb[y, x, 2] = b * inv_s
             if want_range:
                 out_range[y, x] = near_range
 
@@ -206,14 +226,15 @@ def _pixel_range(store, frame, background, y, x):
 
 
 @njit(cache=True, parallel=True)
-def box_kernel(store, frame, background, sh, out_rgb, out_range):
-    """Shade and average the samples of each pixel in one pass (no sample colour buffer)."""
+def box_kernel(store, frame, background, sh, out_rgb, out_range, cov):
+    """Shade and average the samples of each pixel in one pass (no sample colour buffer);
+    cov: the frame's Coverage (with cov.on, single-edge pixels take their exact area)."""
     for y in prange(store.opaque.shape[0]):
-        _box_row(y, store, frame, background, sh, out_rgb, out_range)
+        _box_row(y, store, frame, background, sh, out_rgb, out_range, cov)
 
 
 @borrowing
-def _box_row(y, store, frame, background, sh, out_rgb, out_range):
+def _box_row(y, store, frame, background, sh, out_rgb, out_range, cov):
     """One row of box_kernel. A pixel whose samples all see one feature and nothing
     translucent (most pixels) takes that feature's colour without a per-sample sum."""
     w, s_count = store.opaque.shape[1], store.opaque.shape[2]
@@ -226,8 +247,15 @@ def _box_row(y, store, frame, background, sh, out_rgb, out_range):
             if not uniform or store.opaque[y, x, s] != f0 or store.trans_count[y, x, s] != 0:
                 uniform = False
                 break
+        exact = False
+        cr = cg = cb = 0.0
+        if not uniform and cov.on:  # one edge across the pixel: its exact area (coverage "area")
+            exact, cr, cg, cb = edge_pixel(cov, frame, background, sh, store.opaque_flat,
+                                           store.count_flat, True, store.trans,
+                                           (y * w + x) * s_count, x, y)
         if uniform:
             cr, cg, cb = flat_colour(sh, f0)
+        if uniform or exact:
             out_rgb[y, x, 0] = cr
             out_rgb[y, x, 1] = cg
             out_rgb[y, x, 2] = cb

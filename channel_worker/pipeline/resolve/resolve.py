@@ -8,6 +8,7 @@ import numpy as np
 
 from channel_worker.pipeline.contract import (
     Background,
+    Edges,
     FrameConstants,
     Image,
     SampleBuffer,
@@ -16,6 +17,7 @@ from channel_worker.pipeline.contract import (
 )
 from services.rig.options import RenderOptions
 
+from ._coverage_kernels import coverage_group
 from ._resolve_kernels import StoreIn, box_kernel, filter_kernel, shade_kernel
 from .shading import shading
 
@@ -53,8 +55,20 @@ def filter_weights(name: str, offsets: np.ndarray) -> np.ndarray:
     return FILTERS[name](dx, dy)
 
 
+#: The coverage rules registered in services.rig.options.COVERAGES: whether a pixel one edge
+#: crosses takes the exact area inside it (_coverage_kernels) or its samples' count.
+COVERAGES: dict[str, bool] = {"area": True, "samples": False}
+
+
+def area_coverage(options: RenderOptions, samples: int) -> bool:
+    """Whether single-edge pixels take their exact area: coverage "area" with the box filter
+    (the wider filters weigh samples of neighbouring pixels, which an area does not say) and
+    at least two samples (one sample never sees two features)."""
+    return COVERAGES[options.coverage] and options.filter == "box" and samples >= 2
+
+
 def resolve(buffer: SampleBuffer, screen: ScreenPolygons, frame: FrameConstants,
-            background: Background, options: RenderOptions, *,
+            background: Background, options: RenderOptions, *, edges: Edges | None = None,
             out: np.ndarray | None = None) -> Image:
     """Pixel colours from the sample store and the pixel's nearest range.
 
@@ -67,7 +81,10 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, frame: FrameConstants,
         frame: the frame's constants (sky and earth colours, horizon, screen mapping).
         background: the background stage's output the store's BACKGROUND_ID samples refer
             to; polygon samples are seen through its air (haze, fog) at their range.
-        options: filter (a name of FILTERS).
+        options: filter (a name of FILTERS) and coverage (with the box filter, "area" takes
+            the exact area of pixels one edge crosses: _coverage_kernels).
+        edges: the polygons' edges (binning.edges.setup_edges), which coverage "area" reads;
+            without them every pixel is the mean of its samples.
         out: optional (H, W, 3) float32 array to write the colours into.
 
     Returns:
@@ -81,10 +98,12 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, frame: FrameConstants,
     polygon_range = range_m if buffer.polygon_range is None else buffer.polygon_range
     k = buffer.translucent.shape[3]
     store = StoreIn(buffer.opaque, buffer.translucent.reshape(-1, k), buffer.translucent_count,
-                    polygon_range, want_range)
+                    polygon_range, want_range, buffer.opaque.reshape(-1),
+                    buffer.translucent_count.reshape(-1))
     sh = shading(screen, frame, background)
     if options.filter == "box":
-        box_kernel(store, frame, background, sh, rgb, range_m)
+        cov = coverage_group(area_coverage(options, buffer.offsets.shape[0]), screen, edges)
+        box_kernel(store, frame, background, sh, rgb, range_m, cov)
     else:
         samples = np.empty(buffer.opaque.shape + (3,), np.float32)
         shade_kernel(store, frame, background, sh, samples, range_m)

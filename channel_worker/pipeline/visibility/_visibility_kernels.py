@@ -86,7 +86,7 @@ def _nearer(iz, lay, idx, ref_iz, ref_lay, ref_idx):
 
 
 @njit(cache=True, parallel=True)
-def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads):
+def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads, cov):
     """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
@@ -96,7 +96,8 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads):
 
     bins, screen, edges, frame, background: the contract's values (Bins, ScreenPolygons,
     Edges, FrameConstants, Background); sh: the frame's Shading (resolve.shading), used on the
-    fused path; out: StoreOut; threads: numba.get_num_threads() (jit.lanes).
+    fused path; out: StoreOut; threads: numba.get_num_threads() (jit.lanes); cov: the frame's
+    Coverage (resolve._coverage_kernels), read by the fused box filter.
 
     With a background (background.on) every sample starts out holding it as its nearest opaque
     feature (BACKGROUND_ID at background.inv_z, nothing where that is 0), so polygons behind
@@ -121,19 +122,19 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads):
                      np.empty(n_max, np.int32), np.empty((n_t, k_max), np.float64),
                      np.empty((n_t, k_max), np.int32), np.empty((n_t, k_max), np.int32),
                      np.zeros(n_t, np.int32), np.empty(max_edges, np.int64))
-        _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc)
+        _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc, cov)
 
 
 @borrowing
-def _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc):
+def _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc, cov):
     """The sub-areas of visibility_kernel's lane: rows lane, lane + n_lanes, ..."""
     for row in range(lane, bins.tiles_y, n_lanes):
         for t in range(row * bins.tiles_x, (row + 1) * bins.tiles_x):
-            _tile(t, bins, screen, edges, frame, background, sh, out, sc)
+            _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov)
 
 
 @borrowing
-def _tile(t, bins, screen, edges, frame, background, sh, out, sc):
+def _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov):
     """One sub-area of visibility_kernel, with the row's sample store sc as scratch."""
     tx0, ty0, tx1, ty1 = _subarea_rect(t, bins.tiles_x, bins.size, frame.width, frame.height)
     tw = tx1 - tx0
@@ -176,6 +177,8 @@ def _tile(t, bins, screen, edges, frame, background, sh, out, sc):
     farthest = 0.0
     stale = False
     dropped = 0
+    # An edge can cross a pixel of the sub-area only if a partially covering feature was read.
+    partial = False
     for k in range(k_first, k_end):
         p = bins.polygon[k]
         if covered == n:
@@ -189,6 +192,7 @@ def _tile(t, bins, screen, edges, frame, background, sh, out, sc):
                 out.stopped[t] = k_end - k
                 break
         full = bins.full[k]
+        partial |= not full
         a = screen.inv_z[p, 0]
         b = screen.inv_z[p, 1]
         c = screen.inv_z[p, 2]
@@ -268,7 +272,7 @@ def _tile(t, bins, screen, edges, frame, background, sh, out, sc):
     out.dropped[t] = dropped
     if out.fused:
         box_subarea((tx0, ty0, tx1, ty1), backdrop, frame, background, sh, any_translucent,
-                    out.want_range, sc, out.rgb, out.range_m)
+                    out.want_range, sc, out.rgb, out.range_m, cov, cov.on and partial)
     else:
         _write_store(tx0, ty0, tx1, ty1, backdrop, frame, background, out, sc)
 

@@ -24,7 +24,7 @@ _sym_db = _symbol_database.Default()
 
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x12ig/v1/render.proto\x12\x05ig.v1\"\xe9\x03\n\rRenderOptions\x12\x14\n\x07samples\x18\x01 \x01(\tH\x00\x88\x01\x01\x12\x13\n\x06\x66ilter\x18\x02 \x01(\tH\x01\x88\x01\x01\x12\x14\n\x07subarea\x18\x03 \x01(\rH\x02\x88\x01\x01\x12\x1c\n\x0fmax_translucent\x18\x04 \x01(\rH\x03\x88\x01\x01\x12\x19\n\x0cterrain_bias\x18\x05 \x01(\x11H\x04\x88\x01\x01\x12\x11\n\x04haze\x18\x06 \x01(\x08H\x05\x88\x01\x01\x12\x13\n\x06\x63louds\x18\x07 \x01(\x08H\x06\x88\x01\x01\x12\"\n\x15\x66og_table_subdivision\x18\x08 \x01(\rH\x07\x88\x01\x01\x12\x17\n\nwith_range\x18\t \x01(\x08H\x08\x88\x01\x01\x12\x14\n\x07threads\x18\n \x01(\rH\t\x88\x01\x01\x12\x15\n\x08renderer\x18\x0b \x01(\tH\n\x88\x01\x01\x12\x1b\n\x0etexture_filter\x18\r \x01(\tH\x0b\x88\x01\x01\x42\n\n\x08_samplesB\t\n\x07_filterB\n\n\x08_subareaB\x12\n\x10_max_translucentB\x0f\n\r_terrain_biasB\x07\n\x05_hazeB\t\n\x07_cloudsB\x18\n\x16_fog_table_subdivisionB\r\n\x0b_with_rangeB\n\n\x08_threadsB\x0b\n\t_rendererB\x11\n\x0f_texture_filter\"+\n\tStageTime\x12\r\n\x05stage\x18\x01 \x01(\t\x12\x0f\n\x07seconds\x18\x02 \x01(\x01\"\xb5\x01\n\x0b\x46rameReport\x12 \n\x06stages\x18\x01 \x03(\x0b\x32\x10.ig.v1.StageTime\x12\x32\n\x08\x63ounters\x18\x02 \x03(\x0b\x32 .ig.v1.FrameReport.CountersEntry\x12\x1f\n\x05parts\x18\x03 \x03(\x0b\x32\x10.ig.v1.StageTime\x1a/\n\rCountersEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x03:\x02\x38\x01\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x12ig/v1/render.proto\x12\x05ig.v1\"\x8d\x04\n\rRenderOptions\x12\x14\n\x07samples\x18\x01 \x01(\tH\x00\x88\x01\x01\x12\x13\n\x06\x66ilter\x18\x02 \x01(\tH\x01\x88\x01\x01\x12\x14\n\x07subarea\x18\x03 \x01(\rH\x02\x88\x01\x01\x12\x1c\n\x0fmax_translucent\x18\x04 \x01(\rH\x03\x88\x01\x01\x12\x19\n\x0cterrain_bias\x18\x05 \x01(\x11H\x04\x88\x01\x01\x12\x11\n\x04haze\x18\x06 \x01(\x08H\x05\x88\x01\x01\x12\x13\n\x06\x63louds\x18\x07 \x01(\x08H\x06\x88\x01\x01\x12\"\n\x15\x66og_table_subdivision\x18\x08 \x01(\rH\x07\x88\x01\x01\x12\x17\n\nwith_range\x18\t \x01(\x08H\x08\x88\x01\x01\x12\x14\n\x07threads\x18\n \x01(\rH\t\x88\x01\x01\x12\x15\n\x08renderer\x18\x0b \x01(\tH\n\x88\x01\x01\x12\x1b\n\x0etexture_filter\x18\r \x01(\tH\x0b\x88\x01\x01\x12\x15\n\x08\x63overage\x18\x0c \x01(\tH\x0c\x88\x01\x01\x42\n\n\x08_samplesB\t\n\x07_filterB\n\n\x08_subareaB\x12\n\x10_max_translucentB\x0f\n\r_terrain_biasB\x07\n\x05_hazeB\t\n\x07_cloudsB\x18\n\x16_fog_table_subdivisionB\r\n\x0b_with_rangeB\n\n\x08_threadsB\x0b\n\t_rendererB\x11\n\x0f_texture_filterB\x0b\n\t_coverage\"+\n\tStageTime\x12\r\n\x05stage\x18\x01 \x01(\t\x12\x0f\n\x07seconds\x18\x02 \x01(\x01\"\xb5\x01\n\x0b\x46rameReport\x12 \n\x06stages\x18\x01 \x03(\x0b\x32\x10.ig.v1.StageTime\x12\x32\n\x08\x63ounters\x18\x02 \x03(\x0b\x32 .ig.v1.FrameReport.CountersEntry\x12\x1f\n\x05parts\x18\x03 \x03(\x0b\x32\x10.ig.v1.StageTime\x1a/\n\rCountersEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x03:\x02\x38\x01\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -34,11 +34,11 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_FRAMEREPORT_COUNTERSENTRY']._loaded_options = None
   _globals['_FRAMEREPORT_COUNTERSENTRY']._serialized_options = b'8\001'
   _globals['_RENDEROPTIONS']._serialized_start=30
-  _globals['_RENDEROPTIONS']._serialized_end=519
-  _globals['_STAGETIME']._serialized_start=521
-  _globals['_STAGETIME']._serialized_end=564
-  _globals['_FRAMEREPORT']._serialized_start=567
-  _globals['_FRAMEREPORT']._serialized_end=748
-  _globals['_FRAMEREPORT_COUNTERSENTRY']._serialized_start=701
-  _globals['_FRAMEREPORT_COUNTERSENTRY']._serialized_end=748
+  _globals['_RENDEROPTIONS']._serialized_end=555
+  _globals['_STAGETIME']._serialized_start=557
+  _globals['_STAGETIME']._serialized_end=600
+  _globals['_FRAMEREPORT']._serialized_start=603
+  _globals['_FRAMEREPORT']._serialized_end=784
+  _globals['_FRAMEREPORT_COUNTERSENTRY']._serialized_start=737
+  _globals['_FRAMEREPORT_COUNTERSENTRY']._serialized_end=784
 # @@protoc_insertion_point(module_scope)

@@ -7,7 +7,7 @@ from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 DESCRIPTOR: _descriptor.FileDescriptor
 
 class RenderOptions(_message.Message):
-    __slots__ = ("samples", "filter", "subarea", "max_translucent", "terrain_bias", "haze", "clouds", "fog_table_subdivision", "with_range", "threads", "renderer", "texture_filter")
+    __slots__ = ("samples", "filter", "subarea", "max_translucent", "terrain_bias", "haze", "clouds", "fog_table_subdivision", "with_range", "threads", "renderer", "texture_filter", "coverage")
     SAMPLES_FIELD_NUMBER: _ClassVar[int]
     FILTER_FIELD_NUMBER: _ClassVar[int]
     SUBAREA_FIELD_NUMBER: _ClassVar[int]
@@ -20,6 +20,7 @@ class RenderOptions(_message.Message):
     THREADS_FIELD_NUMBER: _ClassVar[int]
     RENDERER_FIELD_NUMBER: _ClassVar[int]
     TEXTURE_FILTER_FIELD_NUMBER: _ClassVar[int]
+    COVERAGE_FIELD_NUMBER: _ClassVar[int]
     samples: str
     filter: str
     subarea: int
@@ -32,7 +33,8 @@ class RenderOptions(_message.Message):
     threads: int
     renderer: str
     texture_filter: str
-    def __init__(self, samples: _Optional[str] = ..., filter: _Optional[str] = ..., subarea: _Optional[int] = ..., max_translucent: _Optional[int] = ..., terrain_bias: _Optional[int] = ..., haze: _Optional[bool] = ..., clouds: _Optional[bool] = ..., fog_table_subdivision: _Optional[int] = ..., with_range: _Optional[bool] = ..., threads: _Optional[int] = ..., renderer: _Optional[str] = ..., texture_filter: _Optional[str] = ...) -> None: ...
+    coverage: str
+    def __init__(self, samples: _Optional[str] = ..., filter: _Optional[str] = ..., subarea: _Optional[int] = ..., max_translucent: _Optional[int] = ..., terrain_bias: _Optional[int] = ..., haze: _Optional[bool] = ..., clouds: _Optional[bool] = ..., fog_table_subdivision: _Optional[int] = ..., with_range: _Optional[bool] = ..., threads: _Optional[int] = ..., renderer: _Optional[str] = ..., texture_filter: _Optional[str] = ..., coverage: _Optional[str] = ...) -> None: ...
 
 class StageTime(_message.Message):
     __slots__ = ("stage", "seconds")

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from services.rig.options import (
+    COVERAGES,
     FILTERS,
     RENDERERS,
     SAMPLE_PATTERNS,
@@ -22,6 +23,7 @@ def test_defaults_are_the_shipped_quality():
     o = RenderOptions()
     assert (o.samples, o.filter, o.subarea, o.max_translucent, o.terrain_bias) == ("rgss4", "box", 16, 4, 0)
     assert o.haze and o.clouds and o.with_range and o.threads == 0 and o.renderer == "subarea"
+    assert o.coverage == "area"
     assert o.sample_count == 4
 
 
@@ -46,6 +48,7 @@ def test_every_pattern_lies_inside_the_pixel_on_the_subpixel_grid():
     ("samples", True, "samples: unknown pattern True"),
     ("filter", "lanczos", "filter: unknown filter 'lanczos'; known: box, tent, gaussian"),
     ("renderer", "zbuffer", "renderer: unknown renderer 'zbuffer'"),
+    ("coverage", "exact", "coverage: unknown coverage 'exact'; known: area, samples"),
     ("subarea", 0, r"subarea: expected an integer in 1\.\.256, got 0"),
     ("subarea", 16.0, r"subarea: expected an integer in 1\.\.256, got 16\.0"),
     ("max_translucent", 16, r"max_translucent: expected an integer in 1\.\.15, got 16"),
@@ -89,9 +92,11 @@ def test_replace_checks_like_the_constructor():
 
 
 def test_registries_are_what_the_pipeline_implements():
+    from channel_worker.pipeline.resolve.resolve import COVERAGES as coverages
     from channel_worker.pipeline.resolve.resolve import FILTERS as implemented
 
     assert set(implemented) == set(FILTERS)
+    assert set(coverages) == set(COVERAGES)
     assert set(RENDERERS) == {"subarea", "scanline"}
 
 
@@ -106,11 +111,12 @@ def test_command_line_flags_use_the_same_names_and_keep_the_base_when_not_given(
     assert from_arguments(_parse([]), base) == base
     args = _parse(["--samples", "1", "--filter", "tent", "--subarea", "8", "--max-translucent", "2",
                    "--terrain-bias", "-1", "--haze", "--no-clouds", "--fog-table-subdivision", "4",
-                   "--threads", "1", "--renderer", "subarea", "--no-range"], renderer=True, with_range=True)
+                   "--threads", "1", "--renderer", "subarea", "--no-range", "--coverage", "samples"],
+                  renderer=True, with_range=True)
     o = from_arguments(args, base)
     assert o == RenderOptions(samples="centre", filter="tent", subarea=8, max_translucent=2,
                               terrain_bias=-1, haze=True, clouds=False, fog_table_subdivision=4,
-                              with_range=False, threads=1, renderer="subarea")
+                              with_range=False, threads=1, renderer="subarea", coverage="samples")
     # Every option is reachable from the command line (renderer and range where asked for).
     flags = {a.dest for a in argparse.ArgumentParser()._actions}
     parser = argparse.ArgumentParser()

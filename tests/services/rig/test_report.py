@@ -60,6 +60,7 @@ def test_parts_of_a_stage_are_reported_apart_from_the_total():
 def test_options_through_the_proto_and_unset_fields_keep_the_base():
     o = RenderOptions(samples=16, filter="gaussian", terrain_bias=-2, haze=False, threads=2)
     assert options_from_proto(options_to_proto(o)) == o
+    assert options_from_proto(options_to_proto(o.replace(coverage="samples"))).coverage == "samples"
     partial = render_pb2.RenderOptions(samples="centre", with_range=False)
     assert options_from_proto(partial, base=o) == o.replace(samples="centre", with_range=False)
     with pytest.raises(ValueError, match=r"render_options\.samples: 3 has no pattern"):
