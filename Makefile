@@ -47,6 +47,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_visibility.py
 	$(PY) bench/bench_terrain.py
 	$(PY) bench/bench_fog.py
+	$(PY) bench/bench_texture.py
 	$(PY) bench/bench_frame.py
 	$(VENV)/bin/ig latency --out bench/results/latency.json
 

@@ -40,8 +40,10 @@ from channel_worker.pipeline.contract import (
     Edges,
     ScreenPolygons,
 )
+from channel_worker.pipeline.jit import borrowing
 
 from .shading import eye_ray, sample_point, shade_sample
+from .texturing import varies
 
 #: The features a pixel's samples see that have no edges (sky, earth, background), as one.
 _BEHIND = -1
@@ -199,8 +201,11 @@ def edge_pixel(cov, frame, background, sh, ids, counts, translucent, t_id, base,
             behind = EARTH_ID
         else:
             return False, 0.0, 0.0, 0.0
-    pr, pg, pb = _colour(frame, sh, t_id, p, x, y, sp)
-    qr, qg, qb = _colour(frame, sh, t_id, q if q >= 0 else behind, x, y, sq)
+    # One signature of _colour (a compile each) whatever integer types hold the ids.
+    pr, pg, pb = _colour(frame, sh, t_id, ids, np.int64(base), np.int64(p), np.int64(x), np.int64(y),
+                         np.int64(sp))
+    qr, qg, qb = _colour(frame, sh, t_id, ids, np.int64(base), np.int64(q if q >= 0 else behind),
+                         np.int64(x), np.int64(y), np.int64(sq))
     # Area inside P's edge: E = ia X + ib Y + ic over the pixel, in pixel units u, v and
     # divided by SUBPIXEL (the area does not change with the scale): ia u + ib v + E0.
     e0 = ia * (x * SUBPIXEL) + ib * (y * SUBPIXEL) + ic
@@ -209,12 +214,35 @@ def edge_pixel(cov, frame, background, sh, ids, counts, translucent, t_id, base,
     return True, qr + a * (pr - qr), qg + a * (pg - qg), qb + a * (pb - qb)
 
 
+# Not inlined: edge_pixel is inlined into both box paths, and the sample shading this inlines
+# (twice, once in a loop) more than doubled their compile; it runs only for the pixels that
+# take an exact area.
+@borrowing
+def _colour(frame, sh, t_id, ids, base, f, x, y, s):
+    """Feature f's colour as sample s of pixel (x, y) sees it, through the air; a polygon
+    whose colour varies over it (a texture, Gouraud light) as the mean of the samples that
+    see it (ids[base + k] == f), so that the area weighs what the samples would have seen."""
+    if f >= 0 and varies(sh, f):
+        r = 0.0
+        g = 0.0
+        b = 0.0
+        n = 0
+        for k in range(frame.offsets_fixed.shape[0]):
+            if ids[base + k] == f:
+                r, g, b = _sample(frame, sh, t_id, f, x, y, k, (r, g, b))
+                n += 1
+        # Guard: f is one of the pixel's features, so at least sample s sees it.
+        inv = 1.0 / max(n, 1)
+        return r * inv, g * inv, b * inv
+    return _sample(frame, sh, t_id, f, x, y, s, (0.0, 0.0, 0.0))
+
+
 @njit(cache=True, inline="always")
-def _colour(frame, sh, t_id, f, x, y, s):
-    """Feature f's colour as sample s of pixel (x, y) sees it, through the air."""
+def _sample(frame, sh, t_id, f, x, y, s, acc):
+    """acc plus feature f's colour as sample s of pixel (x, y) sees it, through the air."""
     sx, sy = sample_point(frame, x, y, s)
     ray = (1.0, 0.0, 0.0)
     if sh.by_range:
         _, _, length, sin_el, cos_ax = eye_ray(frame, sh, sx, sy)
         ray = (length, sin_el, cos_ax)
-    return shade_sample(sh, y, x, (sx, sy), ray, f, 0, t_id, 0, (0.0, 0.0, 0.0))
+    return shade_sample(sh, y, x, (sx, sy), ray, f, 0, t_id, 0, acc)

@@ -151,8 +151,11 @@ def polygon_colour(sh, p, y, x, point, range_m, sin_el, cos_ax):
     (texturing.surface_colour: textures, Gouraud light), seen through the air at range_m
     when the frame has any (sh.by_range)."""
     r, g, b = sh.colour[p, 0], sh.colour[p, 1], sh.colour[p, 2]
-    if sh.textured:
-        r, g, b = surface_colour(sh, p, point[0], point[1], r, g, b)
+    if sh.textured and sh.look[p] >= 0:
+        # One signature, whatever integer and float types the caller holds: one compile
+        # (numba's int() and float() keep an int32 or a float32 as it is).
+        r, g, b = surface_colour(sh, np.int64(p), np.float64(point[0]), np.float64(point[1]),
+                                 np.float64(r), np.float64(g), np.float64(b))
     if sh.by_range:
         return through_air(sh.air, sh.cloud_on, sh.cloud, y, x, range_m, sin_el, cos_ax, r, g, b)
     return r, g, b

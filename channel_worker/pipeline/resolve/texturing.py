@@ -24,6 +24,7 @@ import math
 
 from numba import njit
 
+from channel_worker.pipeline.jit import borrowing
 from channel_worker.pipeline.scene.surfaces import (
     LOOK_AMPLITUDE,
     LOOK_DETAIL,
@@ -49,7 +50,10 @@ def varies(sh, p):
     return sh.textured and sh.look[p] >= 0
 
 
-@njit(cache=True, inline="always")
+# Not inlined: inlined into each of its callers (the fused and resolve paths' pixel, sample
+# and edge-pixel shading) it made a cold compile of the render kernels minutes long; a call
+# costs nothing next to the texture reads it makes.
+@borrowing
 def surface_colour(sh, p, sx, sy, r, g, b):
     """Polygon p's colour (r, g, b) at screen point (sx, sy) with its look: lit by its Gouraud
     light and modulated by its textures, filtered to the pixel's footprint."""
@@ -105,30 +109,35 @@ def surface_colour(sh, p, sx, sy, r, g, b):
         side_x = sh.spacing * math.sqrt((ux * tw) ** 2 + (vx * th) ** 2)
         side_y = sh.spacing * math.sqrt((uy * tw) ** 2 + (vy * th) ** 2)
         rho = max(side_x, side_y)
+        # How much of the level-0 read to keep (the rest from the pyramid at the footprint)
+        # and the texture's amplitude: fade keeps level 0 and fades its amplitude, mipmap
+        # reads the pyramid, both keeps level 0 as far as the fade would and the pyramid
+        # beyond. One bilinear and one trilinear read in the code, whichever the filter.
+        fade = 1.0
+        keep = 1.0
         if sh.texture_filter == _FADE:
             fade = fade_amplitude(store.finest[t], rho)
             if fade <= 0.0:
                 continue
-            cr, cg, cb = texel_bilinear(store, t, 0, tx, ty)
         elif sh.texture_filter == _MIPMAP:
+            keep = 0.0
+        else:
+            keep = fade_amplitude(store.finest[t], rho)
+        cr = 0.0
+        cg = 0.0
+        cb = 0.0
+        if keep > 0.0:
+            br, bg, bb = texel_bilinear(store, t, 0, tx, ty)
+            cr = keep * br
+            cg = keep * bg
+            cb = keep * bb
+        if keep < 1.0:
             # Guard: a degenerate footprint gives rho 0: log2 of at least 1e-30 is finite, and
             # the read clamps the level.
-            fade = 1.0
-            cr, cg, cb = texel_trilinear(store, t, tx, ty, math.log2(max(rho, 1e-30)))
-        else:
-            # Level 0 as far as the fade finds it safe, the pyramid beyond: a texture whose
-            # finest detail is coarse keeps its full sharpness to a larger footprint than
-            # mipmap's level choice (which blurs once a texel is smaller than a sample,
-            # whatever the texture holds), and never aliases where the fade would lose it.
-            keep = fade_amplitude(store.finest[t], rho)
-            fade = 1.0
-            cr, cg, cb = texel_bilinear(store, t, 0, tx, ty)
-            if keep < 1.0:
-                # Guard: as for mipmap.
-                mr, mg, mb = texel_trilinear(store, t, tx, ty, math.log2(max(rho, 1e-30)))
-                cr = keep * cr + (1.0 - keep) * mr
-                cg = keep * cg + (1.0 - keep) * mg
-                cb = keep * cb + (1.0 - keep) * mb
+            mr, mg, mb = texel_trilinear(store, t, tx, ty, math.log2(max(rho, 1e-30)))
+            cr += (1.0 - keep) * mr
+            cg += (1.0 - keep) * mg
+            cb += (1.0 - keep) * mb
         amp *= fade
         sr += amp * cr
         sg += amp * cg

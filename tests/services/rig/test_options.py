@@ -12,6 +12,7 @@ from services.rig.options import (
     FILTERS,
     RENDERERS,
     SAMPLE_PATTERNS,
+    TEXTURE_FILTERS,
     RenderOptions,
     add_render_arguments,
     from_arguments,
@@ -24,6 +25,7 @@ def test_defaults_are_the_shipped_quality():
     assert (o.samples, o.filter, o.subarea, o.max_translucent, o.terrain_bias) == ("rgss4", "box", 16, 4, 0)
     assert o.haze and o.clouds and o.with_range and o.threads == 0 and o.renderer == "subarea"
     assert o.coverage == "area"
+    assert o.texture_filter == "fade"
     assert o.sample_count == 4
 
 
@@ -98,6 +100,10 @@ def test_registries_are_what_the_pipeline_implements():
     assert set(implemented) == set(FILTERS)
     assert set(coverages) == set(COVERAGES)
     assert set(RENDERERS) == {"subarea", "scanline"}
+    # The kernels take a texture filter by its index in the contract's tuple.
+    from channel_worker.pipeline.contract import TEXTURE_FILTERS as texture_filters
+
+    assert tuple(texture_filters) == tuple(TEXTURE_FILTERS)
 
 
 def _parse(argv, **kw):

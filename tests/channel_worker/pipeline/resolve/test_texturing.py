@@ -44,13 +44,25 @@ def render(db: Database, eye: Eyepoint, size: tuple[int, int] = (160, 120), **op
     return render_frame(db, channel, eye, opts).rgb.astype(np.float64)
 
 
-def test_texture_runs_on_across_a_shared_edge():
-    """Two coplanar faces sharing an edge, with one texture code, look exactly like one face."""
+@pytest.mark.parametrize("coverage", ["samples", "area"])
+def test_texture_runs_on_across_a_shared_edge(coverage):
+    """Two coplanar faces sharing an edge, with one texture code, look like one face: exactly
+    with the samples' coverage; with the exact area of the shared edge (which weighs each
+    side's samples by its area instead of their count) to within the texture's variation
+    inside a pixel."""
     eye = Eyepoint.of(0.0, -40.0, 6.0, 0.0, -12.0, 0.0)
-    one = render(scene({"g": ground_faces(60.0, False)}, [{"model": "g", "position": [0, 0, 0]}]), eye)
-    two = render(scene({"g": ground_faces(60.0, True)}, [{"model": "g", "position": [0, 0, 0]}]), eye)
-    assert np.abs(one - two).max() < 1e-5
+    one = render(scene({"g": ground_faces(60.0, False)}, [{"model": "g", "position": [0, 0, 0]}]), eye,
+                 coverage=coverage)
+    two = render(scene({"g": ground_faces(60.0, True)}, [{"model": "g", "position": [0, 0, 0]}]), eye,
+                 coverage=coverage)
+    diff = np.abs(one - two)
     assert one[60:].std() > 0.01  # the texture is there to be compared
+    if coverage == "samples":
+        assert diff.max() < 1e-5
+    else:
+        # Measured: 35 of 19200 pixels differ, by at most 0.024 (the far ones, where a pixel
+        # spans many checks of the texture), 2e-6 on average.
+        assert diff.max() < 0.05 and diff.mean() < 2e-5
 
 
 def smooth_roof() -> dict:
