@@ -88,6 +88,23 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
             base = ((y - ty0) * tw + (x - tx0)) * s_count
+            if sh.textured and _one_look(sh, o_id, t_cnt, any_translucent, base, s_count):
+                iz = 0.0
+                for s in range(s_count):
+                    iz += o_iz[base + s]
+                cr, cg, cb = _centre_colour(sh, frame, o_id[base], iz * inv_s, x, y)
+                out_rgb[y, x, 0] = cr
+                out_rgb[y, x, 1] = cg
+                out_rgb[y, x, 2] = cb
+                if want_range:
+                    near_range = np.inf
+                    for s in range(s_count):
+                        sx, sy = sample_point(frame, x, y, s)
+                        _, _, ray, _, _ = eye_ray(frame, sh, sx, sy)
+                        # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
+                        near_range = min(near_range, ray / o_iz[base + s])
+                    out_range[y, x] = near_range
+                continue
             if not want_range:
                 # Most pixels, even in a busy sub-area, see one thing with every sample (with
                 # haze or clouds: one polygon, seen through the air at the pixel's centre).
@@ -106,8 +123,6 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                         if t_cnt[base + s] != 0:
                             same = False
                             break
-                if same and f0 >= 0 and varies(sh, f0):
-                    same = False  # textured or Gouraud: shaded per sample, like an edge
                 if same:
                     if f0 >= 0 and sh.by_range:
                         iz = 0.0
@@ -122,7 +137,7 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                         if sh.fogged:
                             cos_ax = fog_cos(sh.air, rx, ry, ray)
                         # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
-                        cr, cg, cb = polygon_colour(sh, f0, y, x, (cx, cy), ray * s_count / iz,
+                        cr, cg, cb = polygon_colour(sh, f0, y, x, (cx, cy, 1.0), ray * s_count / iz,
                                                     (dz[0] * rx + dz[1] * ry + dz[2]) / ray, cos_ax)
                     elif bg_only:
                         cr = background.rgb[y, x, 0]
@@ -195,6 +210,44 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
 
 
 @njit(cache=True, inline="always")
+def _one_look(sh, ids, counts, translucent, base, s_count):
+    """Every sample of the pixel (ids[base:base + s_count]) sees one polygon whose colour
+    varies over it (a texture, Gouraud light), and nothing translucent: like a GPU's
+    multisampling, it is then shaded once, at the pixel's centre and footprint (the samples
+    still decide coverage; pixels where features meet are shaded per sample)."""
+    f0 = ids[base]
+    if f0 < 0 or not varies(sh, f0):
+        return False
+    for s in range(s_count):  # noqa: SIM110  (numba compiles the loop, not all())
+        if ids[base + s] != f0 or (translucent and counts[base + s] != 0):
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _centre_colour(sh, frame, f, iz, x, y):
+    """Polygon f's colour for pixel (x, y) shaded once at its centre (_one_look), seen through
+    the air at the samples' mean 1/z (iz)."""
+    m = frame.mapping
+    cx = x + 0.5
+    cy = y + 0.5
+    rng = 0.0
+    sin_el = 0.0
+    cos_ax = 0.0
+    if sh.by_range:
+        rx = (cx - m[1]) / m[0]
+        ry = (cy - m[3]) / m[2]
+        ray = math.sqrt(rx * rx + ry * ry + 1.0)
+        if sh.fogged:
+            cos_ax = fog_cos(sh.air, rx, ry, ray)
+        dz = frame.dz_row
+        # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
+        rng = ray / iz
+        sin_el = (dz[0] * rx + dz[1] * ry + dz[2]) / ray
+    return polygon_colour(sh, f, y, x, (cx, cy, 1.0), rng, sin_el, cos_ax)
+
+
+@njit(cache=True, inline="always")
 def _sample_colour(store, frame, background, sh, y, x, s, acc):
     """acc plus the colour of sample s of pixel (x, y) of the store."""
     w = store.opaque.shape[1]
@@ -249,10 +302,19 @@ def _box_row(y, store, frame, background, sh, out_rgb, out_range, cov):
                 break
         exact = False
         cr = cg = cb = 0.0
-        if not uniform and cov.on:  # one edge across the pixel: its exact area (coverage "area")
+        base = (y * w + x) * s_count
+        if not uniform and sh.textured and _one_look(sh, store.opaque_flat, store.count_flat, True,
+                                                     base, s_count):
+            # As box_subarea does: once at the pixel's centre, at the samples' mean 1/z.
+            iz = 0.0
+            for s in range(s_count):
+                sx, sy = sample_point(frame, x, y, s)
+                iz += sh.inv_z[f0, 0] * sx + (sh.inv_z[f0, 1] * sy + sh.inv_z[f0, 2])
+            exact = True
+            cr, cg, cb = _centre_colour(sh, frame, f0, iz * inv_s, x, y)
+        elif not uniform and cov.on:  # one edge across the pixel: its exact area (coverage "area")
             exact, cr, cg, cb = edge_pixel(cov, frame, background, sh, store.opaque_flat,
-                                           store.count_flat, True, store.trans,
-                                           (y * w + x) * s_count, x, y)
+                                           store.count_flat, True, store.trans, base, x, y)
         if uniform:
             cr, cg, cb = flat_colour(sh, f0)
         if uniform or exact:

@@ -51,9 +51,6 @@ class Shading(NamedTuple):
         looks, texture_filter: FrameConstants' (the scene's look table, the filter's index).
         texels, level, levels, finest: the scene's TextureStore's (FrameConstants.texels, ...)
             under the store's names, so the texture reads take the Shading as their store.
-        spacing: the samples' mean spacing in pixels, 1 / sqrt(samples per pixel): a
-            textured face is shaded per sample, each sample standing for that much of the
-            pixel (texturing.surface_colour).
     """
 
     colour: np.ndarray
@@ -76,7 +73,6 @@ class Shading(NamedTuple):
     level: np.ndarray
     levels: np.ndarray
     finest: np.ndarray
-    spacing: float
 
 
 def shading(screen: ScreenPolygons, frame: FrameConstants, background: Background) -> Shading:
@@ -87,8 +83,7 @@ def shading(screen: ScreenPolygons, frame: FrameConstants, background: Backgroun
                    background.rgb, air, bool(background.cloud_on), background.cloud,
                    bool(air[0] != 0.0 or fogged or background.cloud_on), fogged,
                    screen.textured, screen.look, screen.surface, frame.looks, frame.texture_filter,
-                   frame.texels, frame.tex_level, frame.tex_levels, frame.tex_finest,
-                   1.0 / math.sqrt(frame.offsets.shape[0]))
+                   frame.texels, frame.tex_level, frame.tex_levels, frame.tex_finest)
 
 
 # Not inlined: inlined at its three call sites it tripled the compile of the fused resolve
@@ -147,15 +142,17 @@ def earth_range(frame, rx, ry):
 
 @njit(cache=True, inline="always")
 def polygon_colour(sh, p, y, x, point, range_m, sin_el, cos_ax):
-    """Polygon p's colour at screen point (sx, sy) of pixel (x, y): its surface there
-    (texturing.surface_colour: textures, Gouraud light), seen through the air at range_m
+    """Polygon p's colour at screen point point = (sx, sy, spacing) of pixel (x, y): its
+    surface there (texturing.surface_colour: textures, Gouraud light, filtered to a footprint
+    of spacing pixels: 1, a pixel's, wherever it is shaded, so that a pixel shaded per sample
+    where features meet matches its neighbours shaded once), seen through the air at range_m
     when the frame has any (sh.by_range)."""
     r, g, b = sh.colour[p, 0], sh.colour[p, 1], sh.colour[p, 2]
     if sh.textured and sh.look[p] >= 0:
         # One signature, whatever integer and float types the caller holds: one compile
         # (numba's int() and float() keep an int32 or a float32 as it is).
         r, g, b = surface_colour(sh, np.int64(p), np.float64(point[0]), np.float64(point[1]),
-                                 np.float64(r), np.float64(g), np.float64(b))
+                                 np.float64(point[2]), np.float64(r), np.float64(g), np.float64(b))
     if sh.by_range:
         return through_air(sh.air, sh.cloud_on, sh.cloud, y, x, range_m, sin_el, cos_ax, r, g, b)
     return r, g, b
@@ -197,7 +194,7 @@ def shade_sample(sh, y, x, point, ray, f, n_trans, t_id, i, acc):
         if sh.by_range:
             # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
             rng = length / (sh.inv_z[p, 0] * sx + (sh.inv_z[p, 1] * sy + sh.inv_z[p, 2]))
-        cr, cg, cb = polygon_colour(sh, p, y, x, point, rng, sin_el, cos_ax)
+        cr, cg, cb = polygon_colour(sh, p, y, x, (sx, sy, 1.0), rng, sin_el, cos_ax)
         r += a * cr
         g += a * cg
         b += a * cb
@@ -206,7 +203,7 @@ def shade_sample(sh, y, x, point, ray, f, n_trans, t_id, i, acc):
         rng = 0.0
         if sh.by_range:
             rng = length / (sh.inv_z[f, 0] * sx + (sh.inv_z[f, 1] * sy + sh.inv_z[f, 2]))
-        cr, cg, cb = polygon_colour(sh, f, y, x, point, rng, sin_el, cos_ax)
+        cr, cg, cb = polygon_colour(sh, f, y, x, (sx, sy, 1.0), rng, sin_el, cos_ax)
     elif f == BACKGROUND_ID:
         cr, cg, cb = sh.bg_rgb[y, x, 0], sh.bg_rgb[y, x, 1], sh.bg_rgb[y, x, 2]
     elif f == EARTH_ID:

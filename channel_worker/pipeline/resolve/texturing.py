@@ -54,9 +54,9 @@ def varies(sh, p):
 # and edge-pixel shading) it made a cold compile of the render kernels minutes long; a call
 # costs nothing next to the texture reads it makes.
 @borrowing
-def surface_colour(sh, p, sx, sy, r, g, b):
+def surface_colour(sh, p, sx, sy, spacing, r, g, b):
     """Polygon p's colour (r, g, b) at screen point (sx, sy) with its look: lit by its Gouraud
-    light and modulated by its textures, filtered to the pixel's footprint."""
+    light and modulated by its textures, filtered to a footprint of spacing pixels."""
     look = sh.look[p]
     if not sh.textured or look < 0:
         return r, g, b
@@ -104,10 +104,9 @@ def surface_colour(sh, p, sx, sy, r, g, b):
         th = rv * (1 << store.level[t, 0, 2])
         tx = (u + ou) * tw
         ty = (v + ov) * th
-        # The footprint: level-0 texels per sample spacing along the pixel's two sides (over
-        # the square root of the samples per pixel: the samples supersample the texture).
-        side_x = sh.spacing * math.sqrt((ux * tw) ** 2 + (vx * th) ** 2)
-        side_y = sh.spacing * math.sqrt((uy * tw) ** 2 + (vy * th) ** 2)
+        # The footprint: level-0 texels per spacing along the pixel's two sides.
+        side_x = spacing * math.sqrt((ux * tw) ** 2 + (vx * th) ** 2)
+        side_y = spacing * math.sqrt((uy * tw) ** 2 + (vy * th) ** 2)
         rho = max(side_x, side_y)
         # How much of the level-0 read to keep (the rest from the pyramid at the footprint)
         # and the texture's amplitude: fade keeps level 0 and fades its amplitude, mipmap
