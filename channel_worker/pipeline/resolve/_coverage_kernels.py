@@ -43,7 +43,6 @@ from channel_worker.pipeline.contract import (
 from channel_worker.pipeline.jit import borrowing
 
 from .shading import eye_ray, sample_point, shade_sample
-from .texturing import varies
 
 #: The features a pixel's samples see that have no edges (sky, earth, background), as one.
 _BEHIND = -1
@@ -219,22 +218,20 @@ def edge_pixel(cov, frame, background, sh, ids, counts, translucent, t_id, base,
 # take an exact area.
 @borrowing
 def _colour(frame, sh, t_id, ids, base, f, x, y, s):
-    """Feature f's colour as sample s of pixel (x, y) sees it, through the air; a polygon
-    whose colour varies over it (a texture, Gouraud light) as the mean of the samples that
-    see it (ids[base + k] == f), so that the area weighs what the samples would have seen."""
-    if f >= 0 and varies(sh, f):
-        r = 0.0
-        g = 0.0
-        b = 0.0
-        n = 0
-        for k in range(frame.offsets_fixed.shape[0]):
-            if ids[base + k] == f:
-                r, g, b = _sample(frame, sh, t_id, f, x, y, k, (r, g, b))
-                n += 1
-        # Guard: f is one of the pixel's features, so at least sample s sees it.
-        inv = 1.0 / max(n, 1)
-        return r * inv, g * inv, b * inv
-    return _sample(frame, sh, t_id, f, x, y, s, (0.0, 0.0, 0.0))
+    """Feature f's colour in pixel (x, y), through the air: the mean of the pixel's samples that
+    see it (ids[base + k] == f; for what has no edges, the background, sky or earth, sample s),
+    so that the area weighs what the samples would have seen (a texture varies over them)."""
+    r = 0.0
+    g = 0.0
+    b = 0.0
+    n = 0
+    for k in range(frame.offsets_fixed.shape[0]):
+        if k == s or (f >= 0 and ids[base + k] == f):
+            r, g, b = _sample(frame, sh, t_id, f, x, y, k, (r, g, b))
+            n += 1
+    # Guard: sample s is always taken, so n >= 1.
+    inv = 1.0 / n
+    return r * inv, g * inv, b * inv
 
 
 @njit(cache=True, inline="always")

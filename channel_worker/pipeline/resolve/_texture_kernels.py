@@ -12,7 +12,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
+
+from channel_worker.pipeline.jit import borrowing
 
 
 @njit(cache=True, inline="always")
@@ -24,7 +27,9 @@ def _wrap(u, period):
     return u - period * math.floor(u / period)  # period >= 1: a level's side
 
 
-@njit(cache=True, inline="always")
+# Not inlined: a texture code's shading reads it in three places (level 0, and the two
+# levels of a trilinear read); inlined, it made the shading's compile twice as long.
+@borrowing
 def texel_bilinear(store, t, level, x, y):
     """Bilinear sample of texture t's level `level` at (x, y) in texels of level 0.
 
@@ -86,7 +91,7 @@ def texel_trilinear(store, t, x, y, lod):
     """
     last = store.levels[t] - 1
     if not lod > 0.0:
-        return texel_bilinear(store, t, 0, x, y)
+        return texel_bilinear(store, t, np.int64(0), x, y)  # a literal 0 would compile anew
     if lod >= last:
         return texel_bilinear(store, t, last, x, y)
     below = int(math.floor(lod))

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from channel_worker.pipeline.jit import borrowing
@@ -126,7 +127,7 @@ def surface_colour(sh, p, sx, sy, spacing, r, g, b):
         cg = 0.0
         cb = 0.0
         if keep > 0.0:
-            br, bg, bb = texel_bilinear(store, t, 0, tx, ty)
+            br, bg, bb = texel_bilinear(store, t, np.int64(0), tx, ty)
             cr = keep * br
             cg = keep * bg
             cb = keep * bb

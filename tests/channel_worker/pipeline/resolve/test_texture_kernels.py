@@ -28,11 +28,11 @@ def make_store():
 STORE = make_store()
 
 
-# Bounds-checked wrappers: the helpers are inlined into them and compiled with their flags, so an
-# index outside texels raises IndexError instead of reading whatever lies there.
-@njit(boundscheck=True)
-def bilinear(store, t, level, x, y):
-    return texel_bilinear(store, t, level, x, y)
+# Bounds-checked compiles: an index outside texels raises IndexError instead of reading whatever
+# lies there. texel_bilinear is a function of its own (not inlined into its callers), so it is
+# compiled anew from its source with the check; texel_trilinear's wrapper checks what it
+# inlines and calls the kernels' texel_bilinear.
+bilinear = njit(boundscheck=True)(texel_bilinear.py_func)
 
 
 @njit(boundscheck=True)
