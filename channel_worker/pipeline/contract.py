@@ -79,11 +79,6 @@ F_COARSENED = F_ON + 23  # 1 where the table spacing was widened (MAX_TABLE), fo
 F_TABLE = F_ON + 24
 
 
-#: How a texture is filtered to its footprint (services.rig.options.TEXTURE_FILTERS), in the
-#: order whose index the kernels get (FrameConstants.texture_filter).
-TEXTURE_FILTERS = ("fade", "mipmap", "both")
-
-
 class FrameConstants(NamedTuple):
     """What every kernel of one channel's frame needs to know of the view and the scene's
     backdrop, computed once per frame (geometry.view.frame_constants).
@@ -106,7 +101,8 @@ class FrameConstants(NamedTuple):
         texels, tex_level, tex_levels, tex_finest: the scene's TextureStore's (scene/textures.py)
             texels, level, levels and finest, flat: numba's parallel loops take the fields of a tuple
             argument, not of a tuple nested in it.
-        texture_filter: index of RenderOptions.texture_filter in TEXTURE_FILTERS.
+        texture_filter: index of RenderOptions.texture_filter in the options' registry
+            (services.rig.options.TEXTURE_FILTERS).
     """
 
     width: int

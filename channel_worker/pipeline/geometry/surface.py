@@ -6,13 +6,15 @@ from __future__ import annotations
 import numpy as np
 
 from channel_worker.pipeline.scene.database import Database
+from channel_worker.pipeline.scene.surfaces import LOOK_SMOOTH
 
 
 def eye_surfaces(database: Database, face_rows: np.ndarray, face_inst: np.ndarray,
                  to_eye_rot: np.ndarray, world_rot: np.ndarray,
-                 rel: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """(look (N,) int32, surface (N, 3, 4) float64) of the drawn faces, or (None, None) when
-    none of them has a look: a scene or a view without textures pays one comparison per face.
+                 rel: np.ndarray) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """(look (N,) int32, surface (N, 3, 4) float64, smooth (N,) bool) of the drawn faces, or
+    (None, None, None) when none of them has a look: a scene or a view without textures pays
+    one comparison per face. smooth marks the Gouraud faces (their light is surface row 2).
 
     Args:
         face_rows: (N,) the drawn faces' rows of the database's FaceTable.
@@ -30,7 +32,7 @@ def eye_surfaces(database: Database, face_rows: np.ndarray, face_inst: np.ndarra
     look = table.look[face_rows]
     lit = np.nonzero(look >= 0)[0]
     if lit.shape[0] == 0:
-        return None, None
+        return None, None, None
     rows = face_rows[lit]
     inst = face_inst[lit]
     rot = to_eye_rot[inst]
@@ -40,7 +42,7 @@ def eye_surfaces(database: Database, face_rows: np.ndarray, face_inst: np.ndarra
     g = np.einsum("mij,mkj->mki", rot, table.tex_map[rows, :, :3])  # (m, 2, 3) eye frame
     maps[lit, :2, :3] = g
     maps[lit, :2, 3] = table.tex_map[rows, :, 3] - np.einsum("mki,mi->mk", g, t)
-    smooth = database.looks[look[lit], 0] != 0.0
+    smooth = database.looks[look[lit], LOOK_SMOOTH] != 0.0
     if smooth.any():
         s_rows = rows[smooth]
         s_inst = inst[smooth]
@@ -57,4 +59,6 @@ def eye_surfaces(database: Database, face_rows: np.ndarray, face_inst: np.ndarra
         idx = lit[smooth]
         maps[idx, 2, :3] = g_eye
         maps[idx, 2, 3] = k - np.einsum("mi,mi->m", g_eye, rel[s_inst])
-    return look.astype(np.int32), maps
+    gouraud = np.zeros(face_rows.shape[0], bool)
+    gouraud[lit[smooth]] = True
+    return look.astype(np.int32), maps, gouraud

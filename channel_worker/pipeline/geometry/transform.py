@@ -46,12 +46,9 @@ def to_eye(database: Database, draws: DrawList, view: View) -> Polygons:
     transform_kernel(drawn, table, np.asarray(database.sun, np.float64),
                      (eye_verts, normal, sun_dot, d))
     light = database.ambient + (1.0 - database.ambient) * np.clip(sun_dot, 0.0, 1.0)
-    look, surface = eye_surfaces(database, face_rows, face_inst, to_eye_rot, draws.rotation, rel)
-    if look is not None:
-        # A Gouraud face's colour stays unlit: its light varies over it (surface row 2).
-        smooth = look >= 0
-        smooth[smooth] = database.looks[look[smooth], 0] != 0.0
-        light[smooth] = 1.0
+    look, surface, smooth = eye_surfaces(database, face_rows, face_inst, to_eye_rot, draws.rotation, rel)
+    if smooth is not None:
+        light[smooth] = 1.0  # a Gouraud face's colour stays unlit: its light is surface row 2
 
     sizes = table.face_size[face_rows]
     start = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)

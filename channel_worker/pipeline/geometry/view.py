@@ -16,9 +16,10 @@ import math
 
 import numpy as np
 
-from channel_worker.pipeline.contract import TEXTURE_FILTERS, FrameConstants, View, subpixel_offsets
+from channel_worker.pipeline.contract import FrameConstants, View, subpixel_offsets
 from channel_worker.pipeline.scene.database import Database
 from services.rig.frame import ChannelSpec, Eyepoint, check_channel, check_eyepoint, hpr_matrix
+from services.rig.options import TEXTURE_FILTERS
 
 
 def make_view(channel: ChannelSpec, eyepoint: Eyepoint, *, near: float = 0.25,
@@ -85,7 +86,7 @@ def height_above_earth(database: Database, view: View) -> float:
 
 
 def frame_constants(view: View, database: Database, offsets: np.ndarray,
-                    texture_filter: str = TEXTURE_FILTERS[0]) -> FrameConstants:
+                    texture_filter: str = "fade") -> FrameConstants:
     """The per-frame constants every kernel of the channel takes (contract.FrameConstants).
 
     Args:
@@ -106,4 +107,4 @@ def frame_constants(view: View, database: Database, offsets: np.ndarray,
         world_to_eye=np.ascontiguousarray(view.world_to_eye, np.float64),
         looks=database.looks, texels=database.textures.texels, tex_level=database.textures.level,
         tex_levels=database.textures.levels, tex_finest=database.textures.finest,
-        texture_filter=TEXTURE_FILTERS.index(texture_filter))
+        texture_filter=list(TEXTURE_FILTERS).index(texture_filter))

@@ -82,8 +82,6 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                 out_rgb[y, x, 2] = cb
         return
     kx, ky, k0 = frame.horizon[0], frame.horizon[1], frame.horizon[2]
-    m = frame.mapping
-    dz = frame.dz_row
     inv_s = 1.0 / s_count
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
@@ -128,17 +126,7 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                         iz = 0.0
                         for s in range(s_count):
                             iz += o_iz[base + s]
-                        cx = x + 0.5
-                        cy = y + 0.5
-                        rx = (cx - m[1]) / m[0]
-                        ry = (cy - m[3]) / m[2]
-                        ray = math.sqrt(rx * rx + ry * ry + 1.0)
-                        cos_ax = 0.0
-                        if sh.fogged:
-                            cos_ax = fog_cos(sh.air, rx, ry, ray)
-                        # Guards: 1/z > 0 for polygons (clipped to z >= near); ray >= 1.
-                        cr, cg, cb = polygon_colour(sh, f0, y, x, (cx, cy, 1.0), ray * s_count / iz,
-                                                    (dz[0] * rx + dz[1] * ry + dz[2]) / ray, cos_ax)
+                        cr, cg, cb = _centre_colour(sh, frame, f0, iz * inv_s, x, y)
                     elif bg_only:
                         cr = background.rgb[y, x, 0]
                         cg = background.rgb[y, x, 1]
@@ -226,8 +214,9 @@ def _one_look(sh, ids, counts, translucent, base, s_count):
 
 @njit(cache=True, inline="always")
 def _centre_colour(sh, frame, f, iz, x, y):
-    """Polygon f's colour for pixel (x, y) shaded once at its centre (_one_look), seen through
-    the air at the samples' mean 1/z (iz)."""
+    """Polygon f's colour for pixel (x, y) shaded once at its centre (a pixel whose samples all
+    see it: _one_look, or any polygon seen through the air), through the air at the samples'
+    mean 1/z (iz)."""
     m = frame.mapping
     cx = x + 0.5
     cy = y + 0.5

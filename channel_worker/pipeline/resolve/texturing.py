@@ -37,11 +37,14 @@ from channel_worker.pipeline.scene.surfaces import (
     LOOK_TEXTURE,
     MAX_CODE_TEXTURES,
 )
+from services.rig.options import TEXTURE_FILTERS
 
-from ._texture_kernels import fade_amplitude, texel_bilinear, texel_trilinear
+from ._texture_kernels import fade_amplitude, texel_bilinear, texel_trilinear, texture_lod
 
-_FADE = 0
-_MIPMAP = 1
+#: The filters as the kernels get them (FrameConstants.texture_filter: the index of the name in
+#: the options' registry).
+_FADE = list(TEXTURE_FILTERS).index("fade")
+_MIPMAP = list(TEXTURE_FILTERS).index("mipmap")
 
 
 @njit(cache=True, inline="always")
@@ -132,9 +135,7 @@ def surface_colour(sh, p, sx, sy, spacing, r, g, b):
             cg = keep * bg
             cb = keep * bb
         if keep < 1.0:
-            # Guard: a degenerate footprint gives rho 0: log2 of at least 1e-30 is finite, and
-            # the read clamps the level.
-            mr, mg, mb = texel_trilinear(store, t, tx, ty, math.log2(max(rho, 1e-30)))
+            mr, mg, mb = texel_trilinear(store, t, tx, ty, texture_lod(rho))
             cr += (1.0 - keep) * mr
             cg += (1.0 - keep) * mg
             cb += (1.0 - keep) * mb

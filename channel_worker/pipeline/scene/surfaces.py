@@ -164,9 +164,9 @@ def _area(pts: np.ndarray) -> float:
 class CodeParser:
     """Reads the scene's "texture_codes" (docs/scene-format.md) and hands out look rows.
 
-    fail(where, message) makes the loader's error (it names the file); `textures` maps each
-    texture name of the scene to its store index, `texture_size` to its level-0 (width,
-    height) in texels (unused here, kept for messages).
+    fail(where, message) makes the loader's error (it names the file); number(value, where,
+    lo, hi) its checked number; `textures` maps each texture name of the scene to its store
+    index.
     """
 
     def __init__(self, fail: Callable[[str, str], Exception], number: Callable[..., float],

@@ -35,7 +35,6 @@ __all__ = [
     "build_store",
     "bundled_texture_path",
     "empty_store",
-    "kernel_store",
     "load_image",
     "procedural",
 ]
@@ -85,9 +84,8 @@ class TextureStore(NamedTuple):
             looks like the image.
         names: the textures' names, index = texture number.
 
-    numba types a tuple of strings by its length, so a kernel given stores with different
-    numbers of names compiles once per number: hand kernels ``kernel_store(store)``, whose
-    names are always empty.
+    The kernels never take the store itself (numba would type its names by their number):
+    FrameConstants carries texels, level, levels and finest (geometry/view.frame_constants).
     """
 
     texels: np.ndarray
@@ -109,12 +107,6 @@ def empty_store() -> TextureStore:
         mean_rgb=np.ones((1, 3), np.float32),
         names=(),
     )
-
-
-def kernel_store(store: TextureStore) -> TextureStore:
-    """store without its names, the form to pass to numba kernels: every store then has one
-    numba type (names is typed by its length), and kernels compile once."""
-    return store._replace(names=())
 
 
 def bundled_texture_path(name: str) -> Path:

@@ -13,7 +13,6 @@ from channel_worker.pipeline.scene.textures import (
     build_store,
     bundled_texture_path,
     empty_store,
-    kernel_store,
     load_image,
     procedural,
 )
@@ -230,12 +229,10 @@ def test_finest_is_capped_at_half():
     assert build_store([image], ["fine"]).finest[0] == 0.5
 
 
-def test_empty_store_and_kernel_store():
+def test_empty_store():
     empty = empty_store()
     assert empty.names == () and empty.texels.shape == (1, 3) and empty.level.shape == (1, MAX_LEVELS, 3)
     assert build_store([], []).texels.shape == empty.texels.shape
-    store = build_store([procedural("noise", 16, 0)], ["n"])
-    assert kernel_store(store).names == () and kernel_store(store).texels is store.texels
 
 
 @pytest.mark.parametrize("images,names,pattern", [
