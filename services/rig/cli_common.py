@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .grpc_util import Security
 from .rigfile import Rig, RigError, default_rig_path, load_rig
 
 #: Exit codes of every `ig` subcommand.
@@ -32,6 +33,15 @@ def load_rig_or_report(path: str | None, command: str) -> Rig | None:
     except RigError as exc:
         error(command, exc)
         return None
+
+
+def security_of(rig: Rig) -> Security:
+    """The rig's [tls] table read into a Security (the certificates' bytes).
+
+    Raises:
+        ValueError: a certificate file that cannot be read; the message names it.
+    """
+    return Security.from_files(rig.tls.ca, rig.tls.cert, rig.tls.key, allow_plaintext=rig.tls.allow_plaintext)
 
 
 def error(command: str, message: object) -> None:

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import ipaddress
 import logging
 import signal
 import threading
 from collections.abc import Iterable
 from concurrent import futures
+from dataclasses import dataclass
+from pathlib import Path
 
 import grpc
 from grpc_health.v1 import health, health_pb2, health_pb2_grpc
@@ -23,27 +26,124 @@ RPC_DEADLINE_S = 5.0
 #: whose stream hits the deadline subscribes again.
 STREAM_DEADLINE_S = 24 * 3600.0
 
-_OPTIONS = [
-    ("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
-    ("grpc.max_receive_message_length", MAX_MESSAGE_BYTES),
+#: What a service that takes no images (host, worker) accepts in one message: the largest
+#: legitimate one is an acknowledgement with its error text (MAX_TEXT_CHARS), a few hundred bytes.
+SMALL_MESSAGE_BYTES = 64 * 1024
+
+#: The longest text kept from a peer (an acknowledgement's error, a subscriber's name); longer
+#: text is refused where it arrives, and what a service stores of its own is cut to it.
+MAX_TEXT_CHARS = 1024
+
+#: Longest pause between attempts to reach a peer that is down, milliseconds. gRPC's default
+#: grows to two minutes, which made workers take 66-100 s to rejoin a restarted host.
+MAX_RECONNECT_BACKOFF_MS = 1000
+
+_KEEPALIVE = [
     ("grpc.keepalive_time_ms", 10_000),
     ("grpc.keepalive_timeout_ms", 5_000),
     ("grpc.keepalive_permit_without_calls", 1),
     ("grpc.http2.max_pings_without_data", 0),
 ]
-_SERVER_OPTIONS = _OPTIONS + [("grpc.http2.min_ping_interval_without_data_ms", 5_000)]
+_CHANNEL_OPTIONS = _KEEPALIVE + [
+    ("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
+    ("grpc.max_receive_message_length", MAX_MESSAGE_BYTES),
+    ("grpc.initial_reconnect_backoff_ms", 100),
+    ("grpc.min_reconnect_backoff_ms", 100),
+    ("grpc.max_reconnect_backoff_ms", MAX_RECONNECT_BACKOFF_MS),
+]
+
+
+class PlaintextRefused(OSError):
+    """A service without TLS asked to listen on, or connect to, an address off the loopback."""
+
+
+@dataclass(frozen=True)
+class Security:
+    """How a service talks to the others: mutual TLS from PEM bytes, or plaintext.
+
+    Plaintext is refused off the loopback unless allow_plaintext (docs/security.md).
+    """
+
+    ca: bytes = b""
+    cert: bytes = b""
+    key: bytes = b""
+    allow_plaintext: bool = False
+
+    @property
+    def tls(self) -> bool:
+        return bool(self.cert)
+
+    @staticmethod
+    def from_files(ca: str, cert: str, key: str, *, allow_plaintext: bool = False) -> Security:
+        """Mutual TLS from PEM files; all three empty: plaintext.
+
+        Raises:
+            ValueError: a file cannot be read or is not PEM; the message names it.
+        """
+        if not (ca or cert or key):
+            return Security(allow_plaintext=allow_plaintext)
+        data = {}
+        for name, path in (("ca", ca), ("cert", cert), ("key", key)):
+            if not path:
+                raise ValueError(f"tls.{name}: missing (mutual TLS needs ca, cert and key)")
+            try:
+                data[name] = Path(path).read_bytes()
+            except OSError as exc:
+                raise ValueError(f"tls.{name}: {path!r}: cannot read: {exc.strerror or exc}") from None
+            if b"-----BEGIN " not in data[name]:
+                raise ValueError(f"tls.{name}: {path!r} is not a PEM file")
+        return Security(data["ca"], data["cert"], data["key"], allow_plaintext)
+
+
+def is_loopback(address: str) -> bool:
+    """Whether host:port names this machine's loopback (127.0.0.0/8, ::1, localhost)."""
+    host = address.rpartition(":")[0].strip("[]")
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def _check_plaintext(address: str, security: Security, what: str) -> None:
+    if not security.tls and not security.allow_plaintext and not is_loopback(address):
+        raise PlaintextRefused(f"{what} {address}: plaintext is refused off the loopback; give the rig file a "
+                               f"[tls] table (make certs) or set tls.allow_plaintext = true")
 
 log = logging.getLogger("ig")
 
 
-def make_server(*, max_workers: int = 16) -> grpc.Server:
-    """A gRPC server with the rig's message-size and keepalive settings."""
-    return grpc.server(futures.ThreadPoolExecutor(max_workers=max_workers), options=_SERVER_OPTIONS)
+def make_server(*, max_workers: int = 16, max_receive_bytes: int = SMALL_MESSAGE_BYTES) -> grpc.Server:
+    """A gRPC server with the rig's keepalive settings, receiving messages up to max_receive_bytes
+    (larger ones are refused by gRPC with RESOURCE_EXHAUSTED before any handler runs).
+
+    The port is exclusive: gRPC sets SO_REUSEPORT by default on Linux, which let a second
+    compositor or worker bind the port of a running one and take half its connections.
+    """
+    options = _KEEPALIVE + [
+        ("grpc.http2.min_ping_interval_without_data_ms", 5_000),
+        ("grpc.max_receive_message_length", max_receive_bytes),
+        ("grpc.max_send_message_length", MAX_MESSAGE_BYTES),
+        ("grpc.so_reuseport", 0),
+    ]
+    return grpc.server(futures.ThreadPoolExecutor(max_workers=max_workers), options=options)
 
 
-def make_channel(address: str) -> grpc.Channel:
-    """An insecure client channel to address (host:port) with the rig's settings."""
-    return grpc.insecure_channel(address, options=_OPTIONS)
+def make_channel(address: str, security: Security | None = None) -> grpc.Channel:
+    """A client channel to address (host:port) with the rig's settings: mutual TLS when security
+    has a certificate, plaintext otherwise.
+
+    Raises:
+        PlaintextRefused: plaintext to an address off the loopback, not allowed.
+    """
+    security = security or Security()
+    _check_plaintext(address, security, "connecting to")
+    if security.tls:
+        creds = grpc.ssl_channel_credentials(root_certificates=security.ca, private_key=security.key,
+                                             certificate_chain=security.cert)
+        return grpc.secure_channel(address, creds, options=_CHANNEL_OPTIONS)
+    return grpc.insecure_channel(address, options=_CHANNEL_OPTIONS)
 
 
 def add_health(server: grpc.Server, services: Iterable[str], *,
@@ -69,14 +169,23 @@ def set_not_serving(servicer: health.HealthServicer, services: Iterable[str]) ->
     set_serving(servicer, services, False)
 
 
-def bind(server: grpc.Server, address: str) -> int:
-    """Listen on address; returns the bound port (useful with port 0).
+def bind(server: grpc.Server, address: str, security: Security | None = None) -> int:
+    """Listen on address, with mutual TLS when security has a certificate (every client must show
+    a certificate of the rig's CA); returns the bound port (useful with port 0).
 
     Raises:
+        PlaintextRefused: plaintext off the loopback, not allowed.
         OSError: the address cannot be bound (in use, not local).
     """
+    security = security or Security()
+    _check_plaintext(address, security, "listening on")
     try:
-        port = server.add_insecure_port(address)
+        if security.tls:
+            creds = grpc.ssl_server_credentials([(security.key, security.cert)], root_certificates=security.ca,
+                                                require_client_auth=True)
+            port = server.add_secure_port(address, creds)
+        else:
+            port = server.add_insecure_port(address)
     except RuntimeError as exc:
         raise OSError(f"cannot listen on {address}: {exc}") from exc
     if port == 0:
@@ -93,12 +202,20 @@ def stop_on_signals(stop: threading.Event) -> None:
     signal.signal(signal.SIGINT, handler)
 
 
-def check_health(address: str, *, timeout_s: float = RPC_DEADLINE_S) -> str:
+def check_health(address: str, *, timeout_s: float = RPC_DEADLINE_S, security: Security | None = None) -> str:
     """The health status name of the server at address ("SERVING", ...)."""
-    with make_channel(address) as ch:
+    with make_channel(address, security) as ch:
         stub = health_pb2_grpc.HealthStub(ch)
         resp = stub.Check(health_pb2.HealthCheckRequest(service=""), timeout=timeout_s)
         return health_pb2.HealthCheckResponse.ServingStatus.Name(resp.status)
+
+
+def clip(text: str, limit: int = MAX_TEXT_CHARS) -> str:
+    """text cut to limit characters, saying how much was cut: what a service keeps of text it
+    did not write (an error from a peer), so that its status and logs stay small."""
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}... ({len(text) - limit} more characters)"
 
 
 def configure_logging(verbose: bool) -> None:

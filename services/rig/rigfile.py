@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +14,69 @@ from .options import RenderOptions
 
 class RigError(ValueError):
     """A rig file that cannot be used; the message names the file, the key and the value."""
+
+
+@dataclass(frozen=True)
+class SyncSpec:
+    """The swap barrier and what the compositor may hold (the ``[sync]`` table; docs/rig-format.md).
+
+    Attributes:
+        frame_timeout_s: the host's wait per frame for every present channel's acknowledgement
+            (the swap barrier); a channel later than this is counted late and the frame goes on.
+        pending_timeout_s: a frame still missing images this long after it opened in the
+            compositor is finalised as incomplete, naming the missing channels.
+        max_pending_frames: frames the compositor holds open at once; opening one more
+            finalises the oldest as incomplete.
+        max_pending_mib: pixels those frames may hold, MiB; the same when exceeded.
+    """
+
+    frame_timeout_s: float = 5.0
+    pending_timeout_s: float = 10.0
+    max_pending_frames: int = 16
+    max_pending_mib: float = 512.0
+
+
+@dataclass(frozen=True)
+class BlendSpec:
+    """Edge blending between adjacent channels (the ``[blend]`` table; docs/edge-blending.md).
+
+    Attributes:
+        overlap_deg: the angle adjacent channels are meant to share (0: abutting); the seam
+            check measures every seam against it.
+        power: exponent of the blend ramp's two halves (1: linear cross-fade).
+        gamma: the projectors' gamma: a mask sent to a projector is the linear-light ramp to
+            the power 1 / gamma.
+        tolerance_deg: a seam whose angular error exceeds this is reported as misaligned.
+    """
+
+    overlap_deg: float = 0.0
+    power: float = 2.0
+    gamma: float = 2.2
+    tolerance_deg: float = 0.05
+
+
+@dataclass(frozen=True)
+class TlsSpec:
+    """Mutual TLS between the rig's services (the ``[tls]`` table; docs/security.md).
+
+    Paths are absolute (a relative path in the file is taken from the rig file's directory).
+
+    Attributes:
+        ca: PEM file of the certificate authority every peer's certificate must chain to.
+        cert: PEM file of this machine's certificate (server and client).
+        key: PEM file of its private key.
+        allow_plaintext: let services without TLS listen on, or connect to, addresses other
+            than the loopback (refused by default: plaintext belongs on one machine).
+    """
+
+    ca: str = ""
+    cert: str = ""
+    key: str = ""
+    allow_plaintext: bool = False
+
+    @property
+    def enabled(self) -> bool:
+        return bool(self.cert)
 
 
 @dataclass(frozen=True)
@@ -39,6 +102,9 @@ class Rig:
     channels: tuple[RigChannel, ...]
     source: str = ""
     render: RenderOptions = field(default_factory=RenderOptions)
+    sync: SyncSpec = field(default_factory=SyncSpec)
+    blend: BlendSpec = field(default_factory=BlendSpec)
+    tls: TlsSpec = field(default_factory=TlsSpec)
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -99,7 +165,7 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         return RigError(f"{source}: {where}: {message}")
 
     for key in doc:
-        if key not in {"host", "compositor", "channels", "render"}:
+        if key not in {"host", "compositor", "channels", "render", "sync", "blend", "tls"}:
             raise fail(key, "unknown key")
     try:
         render = RenderOptions.from_mapping(doc.get("render", {}), where="render")
@@ -165,7 +231,53 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         if address in seen:
             raise fail(where, f"{address!r} is already used by {seen[address]}")
         seen[address] = where
-    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render)
+    sync = SyncSpec(**_table(doc, "sync", {
+        "frame_timeout_s": (float, 0.001, 3600.0), "pending_timeout_s": (float, 0.001, 3600.0),
+        "max_pending_frames": (int, 1, 4096), "max_pending_mib": (float, 1.0, 65536.0)}, fail))
+    blend = BlendSpec(**_table(doc, "blend", {
+        "overlap_deg": (float, 0.0, 45.0), "power": (float, 0.5, 16.0), "gamma": (float, 1.0, 4.0),
+        "tolerance_deg": (float, 0.0, 10.0)}, fail))
+    tls = _tls(doc.get("tls", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
+    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls)
+
+
+def _table(doc: dict[str, Any], name: str, keys: dict[str, tuple[type, float, float]], fail) -> dict[str, Any]:
+    """The numeric keys of an optional table, each checked against its type and range."""
+    table = doc.get(name, {})
+    if not isinstance(table, dict):
+        raise fail(name, f"{table!r} is not a table")
+    out: dict[str, Any] = {}
+    for key, value in table.items():
+        if key not in keys:
+            raise fail(f"{name}.{key}", f"unknown key (known: {', '.join(keys)})")
+        kind, lo, hi = keys[key]
+        number = isinstance(value, int) if kind is int else isinstance(value, (int, float))
+        if isinstance(value, bool) or not number or not math.isfinite(value) or not lo <= value <= hi:
+            what = "a whole number" if kind is int else "a number"
+            raise fail(f"{name}.{key}", f"{value!r} is not {what} in [{lo:g}, {hi:g}]")
+        out[key] = kind(value)
+    return out
+
+
+def _tls(table: Any, base: Path, fail) -> TlsSpec:
+    if not isinstance(table, dict):
+        raise fail("tls", f"{table!r} is not a table")
+    paths: dict[str, str] = {}
+    for key, value in table.items():
+        if key == "allow_plaintext":
+            if not isinstance(value, bool):
+                raise fail("tls.allow_plaintext", f"{value!r} is not true or false")
+            continue
+        if key not in {"ca", "cert", "key"}:
+            raise fail(f"tls.{key}", "unknown key (known: ca, cert, key, allow_plaintext)")
+        if not isinstance(value, str) or not value:
+            raise fail(f"tls.{key}", f"{value!r} is not a file path")
+        paths[key] = str(base / value) if not Path(value).is_absolute() else value
+    given = sorted(paths)
+    if given and given != ["ca", "cert", "key"]:
+        missing = sorted({"ca", "cert", "key"} - set(given))
+        raise fail("tls", f"{', '.join(missing)} missing: mutual TLS needs ca, cert and key together")
+    return TlsSpec(**paths, allow_plaintext=bool(table.get("allow_plaintext", False)))
 
 
 def channel_spec(name: str, *, width: int, height: int, left_deg: float, right_deg: float, bottom_deg: float,
@@ -198,6 +310,11 @@ def rig_toml(rig: Rig) -> str:
     changed = {k: v for k, v in rig.render.to_mapping().items() if getattr(RenderOptions(), k) != v}
     if changed:
         lines.append("[render]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in changed.items()))
+    for name, spec, default in (("sync", rig.sync, SyncSpec()), ("blend", rig.blend, BlendSpec()),
+                                ("tls", rig.tls, TlsSpec())):
+        table = {k: v for k, v in asdict(spec).items() if getattr(default, k) != v}
+        if table:
+            lines.append(f"[{name}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in table.items()))
     for ch in rig.channels:
         s = ch.spec
         lines.append(
@@ -213,7 +330,7 @@ def _toml_value(value: object) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):
-        return f'"{value}"'
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
     return repr(value)
 
 
