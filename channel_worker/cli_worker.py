@@ -22,7 +22,11 @@ log = logging.getLogger("ig.worker")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig worker`."""
     add_rig_arguments(parser)
-    parser.add_argument("--channel", required=True, help="name of the rig channel to render")
+    which = parser.add_mutually_exclusive_group(required=True)
+    which.add_argument("--channel", help="name of the rig channel to render")
+    which.add_argument("--channel-index", type=int, metavar="N",
+                       help="render the rig's N-th channel, counting from 0 in the file's order (a Kubernetes "
+                            "StatefulSet passes its pod's ordinal)")
     parser.add_argument("--scene", default=None,
                         help="scene JSON (docs/scene-format.md); default: the bundled airfield")
     add_render_arguments(parser)
@@ -47,7 +51,13 @@ def run(args: argparse.Namespace) -> int:
     if rig is None:
         return EXIT_BAD_INPUT
     try:
-        channel = rig.channel(args.channel)
+        if args.channel_index is not None:
+            if not 0 <= args.channel_index < len(rig.channels):
+                raise RigError(f"--channel-index: {args.channel_index} is not in [0, {len(rig.channels) - 1}] "
+                               f"(the rig has {len(rig.channels)} channels)")
+            channel = rig.channels[args.channel_index]
+        else:
+            channel = rig.channel(args.channel)
         # The rig file's [render] table, under this command line's flags.
         options = from_arguments(args, base=rig.render)
         # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
