@@ -137,8 +137,8 @@ def measure_seam(left: ChannelSpec, right: ChannelSpec, blend: BlendSpec, *,
     # between channels keeps it and a pitch or roll error changes it, wherever on the seam.
     # Not the tangent-plane angle atan(up / forward): planar images off their axes scale rows by
     # 1 / cos(azimuth), so overlapping channels (the ray at 35 degrees in one, 25 in the other)
-    # would differ by degrees at the corners with nothing misaligned. hypot >= |forward| of the
-    # left frame's rays (forward = 1 there), so neither atan2 divides by zero.
+    # would differ by degrees at the corners with nothing misaligned. atan2 again, no division:
+    # a ray straight along the right channel's up axis (x = forward = 0) is 90 degrees.
     norm_left = np.hypot(tx, 1.0)
     vertical = np.degrees(np.arctan2(up, np.hypot(x, fwd)) - np.arctan2(ty, norm_left))
     horizontal = overlap - blend.overlap_deg
