@@ -64,6 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from services.rig.memory import return_freed_memory
     from services.rig.rigfile import bind_address
 
+    from .blend import blend_plan, write_masks
     from .server import Compositor, serve
 
     configure_logging(args.verbose)
@@ -79,13 +80,27 @@ def run(args: argparse.Namespace) -> int:
     # system at once, so the compositor's memory comes down when the channel is back.
     return_freed_memory()
     specs = [ch.spec for ch in rig.channels]
+    plan = blend_plan(specs, rig.blend)
+    # The seam check (docs/edge-blending.md): how every pair of adjacent channels meets, from the
+    # rig file alone; a misaligned seam is reported at start and in every run's report.
+    seams = plan.report()
+    for seam in plan.seams:
+        if not seam.ok:
+            log.warning("seam %s | %s is misaligned beyond %g degrees: %s", seam.left, seam.right,
+                        rig.blend.tolerance_deg, seam.as_dict())
+    if plan.blends:
+        try:
+            write_masks(plan, Path(args.out) / "masks")
+        except OSError as exc:
+            error("compositor", f"--out: {exc}")
+            return EXIT_FAILED
     compositor = Compositor(rig.channel_names, Path(args.out), record_every=args.record_every,
                             exr_every=args.exr_every,
                             pending_timeout_s=args.pending_timeout or rig.sync.pending_timeout_s,
                             sizes={s.name: (s.width, s.height) for s in specs},
                             max_pending_frames=rig.sync.max_pending_frames,
                             max_pending_bytes=int(rig.sync.max_pending_mib * 2**20),
-                            )
+                            plan=plan if plan.blends else None, seams=seams)
     stop = threading.Event()
     stop_on_signals(stop)
     # The largest message: the largest channel image (half-float RGB) and the request's fields.

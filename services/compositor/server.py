@@ -12,7 +12,6 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import grpc
 from google.protobuf import json_format
@@ -31,6 +30,7 @@ from services.rig.grpc_util import (
     set_not_serving,
 )
 
+from .blend import BlendPlan
 from .gather import OTHER_RUN, UNPUBLISHED, CompleteFrame, FrameGatherer, InvalidSubmission
 from .stitch import FrameRecorder, RecorderCounts, compose
 from .timing import TimingStats
@@ -96,18 +96,19 @@ class Compositor:
         max_pending_frames: frames held open at once (FrameGatherer).
         max_pending_bytes: pixels the open frames may hold.
         plan: edge blending of the stitch (None: channels side by side).
+        seams: the seam check of the rig (BlendPlan.report()), for the report.
     """
 
     def __init__(self, channels: Sequence[str], out_dir: Path, *, record_every: int = 1, exr_every: int = 30,
                  pending_timeout_s: float = 30.0, sizes: Mapping[str, tuple[int, int]] | None = None,
                  max_pending_frames: int = 16, max_pending_bytes: int = 512 * 2**20,
-                 plan: Any = None, seams: Sequence[dict] = ()) -> None:
+                 plan: BlendPlan | None = None, seams: dict | None = None) -> None:
         self.out_dir = Path(out_dir)
         self.channels = tuple(channels)
         self.record_every = record_every
         self.exr_every = exr_every
         self.plan = plan
-        self.seams = list(seams)
+        self.seams = seams or {}
         self._pending_timeout_s = pending_timeout_s
         self._sizes = sizes
         self._max_pending = (max_pending_frames, max_pending_bytes)
@@ -134,8 +135,8 @@ class Compositor:
     def _new_run(self, run_id: str) -> _Run:
         """A run's state; its directory is opened now if the run is named."""
         gatherer = FrameGatherer(self.channels, lambda f: None, run_id=run_id,
-                                 pending_timeout_s=self._pending_timeout_s, sizes=self._sizes, max_pending_frames=self._max_pending[0],
-                                 max_pending_bytes=self._max_pending[1])
+                                 pending_timeout_s=self._pending_timeout_s, sizes=self._sizes,
+                                 max_pending_frames=self._max_pending[0], max_pending_bytes=self._max_pending[1])
         run = _Run(run_id, gatherer, TimingStats())
         run.gatherer.on_complete = lambda frame: self._on_complete(run, frame)
         if run_id:
@@ -235,7 +236,7 @@ class Compositor:
     # --- frames -------------------------------------------------------------------------------
     def _on_complete(self, run: _Run, frame: CompleteFrame) -> None:
         try:
-            composite = compose(frame)
+            composite = compose(frame, self.plan)
         except ValueError as exc:
             with self._lock:
                 run.stitch_errors += 1
