@@ -11,7 +11,6 @@ from typing import Any
 from .frame import ChannelSpec
 from .options import RenderOptions
 
-
 #: Channels a rig may have: the swap barrier and the compositor's bounds scale with it, and
 #: no projection dome uses more.
 MAX_CHANNELS = 64
