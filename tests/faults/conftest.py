@@ -5,12 +5,11 @@ from __future__ import annotations
 import subprocess
 import sys
 
-import pytest
-
 # Loaded now, at a shallow stack: hypothesis's pytest plugin imports it in its terminal summary,
 # where Python 3.11.7's parser failed with "SystemError: AST constructor recursion depth
 # mismatch" after this suite's failures (CPython gh-106905), losing the summary.
 import hypothesis.internal.observability  # noqa: F401
+import pytest
 
 from .harness import ROOT, SCENE, env, write_rig
 

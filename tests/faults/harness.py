@@ -12,6 +12,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import hashlib
+import itertools
 import json
 import os
 import signal
@@ -479,7 +480,7 @@ def published_intervals(address: str, seconds: float, every_s: float = 0.05) -> 
             times.extend([now] * (n - last))
             last = n
         time.sleep(every_s)
-    return [b - a for a, b in zip(times, times[1:], strict=False)]
+    return [b - a for a, b in itertools.pairwise(times)]
 
 
 def record(test: str, **values: Any) -> None:
