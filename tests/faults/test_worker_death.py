@@ -65,6 +65,7 @@ def death(tmp_path_factory, kernels):
         poll(lambda: len(watcher.snapshot()) >= 20, what="20 complete frames before the kill")
         result["rss_before"] = rss_over(comp, 4.0)
 
+        timeouts_before = dict(host_status(rig.host_address).ack_timeouts)
         procs.kill("left")
         killed_at = host_status(rig.host_address).frames_published
         time.sleep(DEAD_S / 2)
@@ -90,6 +91,7 @@ def death(tmp_path_factory, kernels):
         except AssertionError as exc:
             result["recover_error"] = str(exc)
         result["rss_after"] = rss_over(comp, 4.0)
+        result["timeouts"] = (timeouts_before, dict(host_status(rig.host_address).ack_timeouts))
         result["report_after"] = compositor_report(rig.compositor_address)
         result["alive"] = {n: p.poll() is None for n, p in procs.procs.items()}
     finally:
@@ -106,6 +108,7 @@ def death(tmp_path_factory, kernels):
            peak_pending_frames=result.get("report_after", {}).get("peak_pending_frames"),
            peak_pending_bytes=result.get("report_after", {}).get("peak_pending_bytes"),
            frames_evicted=result.get("report_after", {}).get("frames_evicted"),
+           ack_timeouts_before_after=result.get("timeouts"),
            pending_dead=result.get("report_dead_late", {}).get("frames_pending"),
            incomplete_dead=result.get("report_dead_late", {}).get("frames_incomplete"),
            last_incomplete=result.get("report_dead_late", {}).get("last_incomplete"),
@@ -129,6 +132,14 @@ def test_dead_worker_frames_are_decided_at_once_not_held(death):
 def test_complete_frames_again_after_the_worker_returns(death):
     assert "recover_error" not in death, death.get("recover_error", "") + death["logs"]
     assert death["frames_to_recover"] <= 2 * RATE  # measured N; docs/faults.md
+
+
+def test_returning_worker_is_not_timed_out_for_a_frame_it_never_got(death):
+    # A frame published while the worker was away never reached it: the host must not hold the
+    # others for the whole frame timeout waiting for its acknowledgement (a subscription that
+    # lands during the barrier's wait used to be waited for).
+    before, after = death["timeouts"]
+    assert after == before, (before, after)
 
 
 def test_compositor_memory_stays_flat(death):
