@@ -54,7 +54,7 @@ def gatherer(channels=CHANNELS, **kw):
 
 # --- sizes -------------------------------------------------------------------------------------
 def test_an_image_of_another_size_than_the_rig_files_is_refused():
-    g, _ = gatherer(sizes={c: (W, H) for c in CHANNELS})
+    g, _ = gatherer(sizes=dict.fromkeys(CHANNELS, (W, H)))
     g.on_published(published(0))
     with pytest.raises(InvalidSubmission) as err:
         g.submit(image(0, "centre", w=W + 1, h=H))

@@ -2,6 +2,7 @@
 exclusive ports, plaintext only on the loopback, clipped text. Servers in-process on port 0."""
 
 import re
+import types
 
 import grpc
 import pytest
@@ -136,7 +137,7 @@ def test_overlong_text_of_a_streaming_request_is_refused(served):
 
 
 def test_a_message_over_the_servers_limit_is_resource_exhausted(served):
-    channel, servicer, refusals, _ = served
+    channel, servicer, _, _ = served
     stub = compositor_pb2_grpc.CompositorServiceStub(channel)
     with pytest.raises(grpc.RpcError) as err:
         stub.SubmitChannelImage(good_request(pixels=b"\0" * (2 * MAX_RECEIVE)), timeout=5)
@@ -146,18 +147,12 @@ def test_a_message_over_the_servers_limit_is_resource_exhausted(served):
 
 
 def test_client_streaming_methods_are_refused_at_registration():
-    class FakeDescriptor:
-        full_name = "x.Svc"
-        methods = [type("M", (), {"name": "Up", "client_streaming": True, "server_streaming": False,
-                                  "input_type": SERVICE.methods[0].input_type,
-                                  "output_type": SERVICE.methods[0].output_type})()]
-
-    class Servicer:
-        def Up(self, request, context):  # pragma: no cover - never registered
-            return None
-
-    with pytest.raises(ValueError, match="x.Svc.Up: client streaming"):
-        add_service(make_server(), Servicer(), FakeDescriptor(), refused=lambda c, m: None)  # type: ignore[arg-type]
+    up = types.SimpleNamespace(name="Up", client_streaming=True, server_streaming=False,
+                               input_type=SERVICE.methods[0].input_type, output_type=SERVICE.methods[0].output_type)
+    service = types.SimpleNamespace(full_name="x.Svc", methods=[up])
+    servicer = types.SimpleNamespace(Up=lambda request, context: None)
+    with pytest.raises(ValueError, match=r"x\.Svc\.Up: client streaming is not used by the rig"):
+        add_service(make_server(), servicer, service, refused=lambda c, m: None)
 
 
 def test_a_second_server_cannot_bind_a_port_in_use(served):
