@@ -74,7 +74,8 @@ def wait_serving(address, proc, security, timeout_s=300.0):
 
 
 def refused(address, security):
-    """The status code a health check with security gets from address."""
+    """The health status a check with security gets from address, or the status code of its
+    failure ("UNAVAILABLE" for a refused handshake)."""
     try:
         return check_health(address, timeout_s=5.0, security=security)
     except grpc.RpcError as exc:
@@ -110,14 +111,20 @@ def tls_run(tmp_path_factory):
             launch(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name, "--once"])
         launch("host", ["host", "--rig", str(rig_path), "--rate", str(RATE), "--duration", str(DURATION),
                         "--sync-timeout", "20"])
-        result["health"] = {name: wait_serving(addr, procs[proc], security) for name, addr, proc in
-                            [("host", rig.host_address, "host"),
-                             ("compositor", rig.compositor_address, "compositor")]
-                            + [(ch.name, ch.address, f"worker-{ch.name}") for ch in rig.channels]}
-        # Plaintext on the loopback is allowed to leave this machine's client, but the host's
-        # port speaks TLS only: the handshake fails. So does a certificate of another CA.
-        result["plaintext"] = refused(rig.host_address, Security())
-        result["stranger"] = refused(rig.host_address, stranger)
+        # The host serves from its start while it waits for the workers (compiling their
+        # kernels) and through the run: ask it first, then at once throw the strangers at it.
+        # Plaintext is what this machine's client may use on the loopback, but the host's port
+        # speaks TLS only: the handshake fails. So does a certificate of another CA. The host
+        # serves the rig's client before and after (so the refusals are not those of a host gone).
+        health = {"host": wait_serving(rig.host_address, procs["host"], security)}
+        result["strangers"] = {"before": refused(rig.host_address, security),
+                               "plaintext": refused(rig.host_address, Security()),
+                               "another CA": refused(rig.host_address, stranger),
+                               "after": refused(rig.host_address, security)}
+        health.update({name: wait_serving(addr, procs[proc], security) for name, addr, proc in
+                       [("compositor", rig.compositor_address, "compositor")]
+                       + [(ch.name, ch.address, f"worker-{ch.name}") for ch in rig.channels]})
+        result["health"] = health
         result["exit"] = wait_all(procs)
     finally:
         for proc in procs.values():
@@ -144,8 +151,8 @@ def test_frames_complete_over_tls(tls_run):
 
 
 def test_a_plaintext_client_or_another_cas_certificate_gets_nothing_from_the_host(tls_run):
-    assert tls_run["plaintext"] == "UNAVAILABLE"
-    assert tls_run["stranger"] == "UNAVAILABLE"
+    assert tls_run["strangers"] == {"before": "SERVING", "plaintext": "UNAVAILABLE", "another CA": "UNAVAILABLE",
+                                    "after": "SERVING"}, tls_run["logs"]["host"]
 
 
 def test_a_host_without_tls_refuses_to_listen_off_the_loopback(tmp_path):
