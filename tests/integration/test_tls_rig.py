@@ -134,7 +134,7 @@ def tls_run(tmp_path_factory):
         for f in logs.values():
             f.close()
     result["logs"] = {name: (tmp / f"{name}.log").read_text() for name in logs}
-    report = out / "report.json"
+    report = out / "latest" / "report.json"  # the compositor's newest run
     result["report"] = json.loads(report.read_text()) if report.exists() else {}
     return result
 
@@ -147,7 +147,7 @@ def test_frames_complete_over_tls(tls_run):
     assert tls_run["exit"] == dict.fromkeys(("compositor", "worker-left", "worker-right", "host"), 0), tls_run["logs"]
     report = tls_run["report"]
     assert report["frames_complete"] > 0, tls_run["logs"]
-    assert report["frames_incomplete"] == {"missing_channel": 0, "eyepoint_mismatch": 0}
+    assert not any(report["frames_incomplete"].values()), report["frames_incomplete"]
 
 
 def test_a_plaintext_client_or_another_cas_certificate_gets_nothing_from_the_host(tls_run):
