@@ -228,12 +228,16 @@ class FrameGatherer:
             self._bound()
         self._emit(ready)
 
-    def accepts(self, run_id: str, frame_number: int) -> bool:
-        """Whether an image of run_id's frame_number would pass the run and frame checks now
-        (the compositor waits briefly for its copy of the frame when not)."""
+    def accepts(self, run_id: str, frame_number: int) -> bool | None:
+        """Whether an image of run_id's frame_number passes the run and frame checks now: True;
+        False when it may once the compositor's copy of the frame has arrived (another run, or
+        a frame just ahead); None when it never will (a frame far beyond the last published)."""
         with self._lock:
-            return (not (run_id and self.run_id and run_id != self.run_id)
-                    and frame_number <= self.last_published + LOOKAHEAD_FRAMES)
+            if run_id and self.run_id and run_id != self.run_id:
+                return False
+            if frame_number <= self.last_published + LOOKAHEAD_FRAMES:
+                return True
+            return False if frame_number <= self.last_published + 4 * LOOKAHEAD_FRAMES else None
 
     def submit(self, request: compositor_pb2.SubmitChannelImageRequest) -> None:
         """A channel delivered an image.

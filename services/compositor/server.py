@@ -143,11 +143,11 @@ class Compositor:
             self._open_directory(run)
         return run
 
-    def _open_directory(self, run: _Run) -> None:
-        """Give the run its directory and recorder; point OUT/latest at it."""
+    def _open_directory(self, run: _Run, name: str = "") -> None:
+        """Give the run its directory (runs/<name or run id>) and recorder; point OUT/latest at it."""
         # The run id names a directory: anything but a plain name (a path, say) is hashed.
-        name = run.run_id if _RUN_NAME.fullmatch(run.run_id) else \
-            "run-" + hashlib.sha1(run.run_id.encode()).hexdigest()[:12]
+        name = name or (run.run_id if _RUN_NAME.fullmatch(run.run_id) else
+                        "run-" + hashlib.sha1(run.run_id.encode()).hexdigest()[:12])
         directory = self.out_dir / "runs" / name
         k = 2
         while directory.exists():  # the same run seen again (the compositor restarted): never overwrite
@@ -192,7 +192,7 @@ class Compositor:
             InvalidSubmission: as FrameGatherer.submit.
         """
         deadline = time.monotonic() + SUBMIT_WAIT_S
-        while not self.gatherer.accepts(request.run_id, request.frame_number) and time.monotonic() < deadline:
+        while self.gatherer.accepts(request.run_id, request.frame_number) is False and time.monotonic() < deadline:
             time.sleep(0.005)
         self.gatherer.submit(request)
 
@@ -280,6 +280,9 @@ class Compositor:
         watchers; returns the last run's report."""
         with self._lock:
             run = self._run
+            if run.directory is None:
+                # Stopped before the host published anything: the report still says so.
+                self._open_directory(run, time.strftime("no-frames-%Y%m%dT%H%M%SZ", time.gmtime()))
         if not run.ended:
             self._end(run, grace_s)
         for ender in self._enders:
