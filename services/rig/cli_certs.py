@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from .cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, add_rig_arguments, error, load_rig_or_report
+from .cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, load_rig_or_report
 
 #: Validity when --days is not given (services/rig/certs.py DEFAULT_DAYS, repeated here so that
 #: building the parser does not import cryptography).
@@ -30,7 +30,10 @@ def days(text: str) -> int:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig certs`."""
-    add_rig_arguments(parser, bind=False)
+    # Not add_rig_arguments: nothing here logs, so its --verbose would do nothing.
+    parser.add_argument("--rig", default=None,
+                        help="rig file whose services get certificates (docs/rig-format.md); default: the "
+                             "bundled three-channel rig on 127.0.0.1")
     parser.add_argument("--out", default="certs",
                         help="output directory: ca.pem, ca-key.pem, and NAME.pem, NAME-key.pem for host, "
                              "compositor and each channel (default certs; keys are written mode 0600)")
