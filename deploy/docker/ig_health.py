@@ -96,7 +96,7 @@ def check(target: str, name: str, security, timeout_s: float = 3.0) -> str:
 def _cmdlines() -> list[list[str]]:
     """Every process's command line, lowest pid first."""
     out = []
-    pids = sorted((int(p.name) for p in Path("/proc").iterdir() if p.name.isdigit()))
+    pids = sorted(int(p.name) for p in Path("/proc").iterdir() if p.name.isdigit())
     for pid in pids:
         try:
             raw = Path(f"/proc/{pid}/cmdline").read_bytes()

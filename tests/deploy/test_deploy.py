@@ -416,7 +416,7 @@ def test_systemd_units_match_the_rig():
                     targets = {dst for _src, dst in binds}
                     assert {rig.tls.cert, rig.tls.key} <= targets, f"{path.name}: {targets}"
                     name = {"host": "host", "compositor": "compositor"}.get(parsed.command, instance)
-                    assert dict((d, Path(s).name) for s, d in binds) == {
+                    assert {d: Path(s).name for s, d in binds} == {
                         rig.tls.cert: f"{name}.pem", rig.tls.key: f"{name}-key.pem"}, path.name
     assert set(SERVICES) <= seen
 
