@@ -15,6 +15,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -427,3 +428,22 @@ def test_readme_ports_table_is_the_default_rig():
     ports = {int(p) for p in re.findall(r"^\| [^|]+\| (\d+) \|", text, re.M)}
     expected = {port_of(a) for a in (rig.host_address, rig.compositor_address, *(c.address for c in rig.channels))}
     assert expected <= ports, f"deploy/README.md's ports table: {sorted(ports)} vs the default rig {sorted(expected)}"
+
+
+def test_systemd_analyze_verifies_the_units(tmp_path):
+    analyze = shutil.which("systemd-analyze")
+    if analyze is None:
+        pytest.skip("no systemd-analyze")
+    ig = shutil.which("ig", path=str(Path(sys.executable).parent)) or shutil.which("ig")
+    if ig is None:
+        pytest.skip("no ig executable to stand for /opt/ig/.venv/bin/ig")
+    units = []
+    for path in sorted(SYSTEMD.glob("*.service")):
+        name = path.name.replace("@.", "@left.")  # a template is verified as one of its instances
+        (tmp_path / name).write_text(path.read_text().replace("/opt/ig/.venv/bin/ig", ig))
+        units.append(str(tmp_path / name))
+    result = subprocess.run([analyze, "verify", "--man=no", *units], capture_output=True, text=True, timeout=120)
+    no_systemd = r"Failed to (connect|initialize)|System has not been booted"
+    if result.returncode != 0 and re.search(no_systemd, result.stderr):
+        pytest.skip(f"systemd-analyze cannot run here: {result.stderr.strip()[:160]}")
+    assert result.returncode == 0 and "ig-" not in result.stderr, result.stderr
