@@ -47,7 +47,7 @@ from services.rig.cli_common import (
     positive,
 )
 from services.rig.grpc_util import RPC_DEADLINE_S, make_channel
-from services.rig.rigfile import Rig, rig_toml
+from services.rig.rigfile import Rig, TlsSpec, rig_toml
 
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
@@ -135,10 +135,11 @@ def free_port() -> int:
 
 def local_rig(rig: Rig) -> Rig:
     """The rig with every service on a free 127.0.0.1 port, so a demo never collides with a rig
-    already running on the fixed ports."""
+    already running on the fixed ports; plaintext, as everything stays on the loopback (a rig
+    file's [tls] table is for its machines)."""
     chans = tuple(replace(ch, address=f"127.0.0.1:{free_port()}") for ch in rig.channels)
     return replace(rig, host_address=f"127.0.0.1:{free_port()}",
-                   compositor_address=f"127.0.0.1:{free_port()}", channels=chans)
+                   compositor_address=f"127.0.0.1:{free_port()}", channels=chans, tls=TlsSpec())
 
 
 class Processes:
