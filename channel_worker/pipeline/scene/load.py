@@ -56,9 +56,11 @@ BUNDLED_TERRAIN = ("jacksboro",)
 # list lengths before anything is built from it, so an oversized scene is refused in
 # milliseconds instead of after gigabytes of arrays, and never drawn wrong.
 
-#: Bytes of a scene file: json.loads holds about ten times the text in Python objects, so this
-#: bounds loading to a few hundred megabytes; the bundled airfield is under 100 kB.
-MAX_SCENE_BYTES = 64 * 1024 * 1024
+#: Bytes of a scene file. Loading holds about twenty times the text (Python objects, then the
+#: arrays) and validates each face in Python: a 48 MB file of 650,000 quads peaked at 1.06 GB
+#: and took 270 s on the shared 2-core machine, so 16 MiB keeps a load near 350 MB and a
+#: minute or so. The bundled airfield is under 100 kB.
+MAX_SCENE_BYTES = 16 * 1024 * 1024
 
 #: Vertices of one face, as written. The rasterizer tests a sample against every edge of a
 #: polygon (an AND of half-planes, exact only while the polygon stays convex), and projection
