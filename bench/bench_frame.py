@@ -89,9 +89,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def load(quick: bool) -> dict[str, Any]:
     """The demo scene (its terrain built on first use), the centre channel, the eyepoints."""
-    from channel_worker.pipeline.memory import keep_freed_memory
     from channel_worker.pipeline.scene.load import demo_scene_path, load_scene
     from host_sim.flight import bundled_flight
+    from services.rig.memory import keep_freed_memory
     from services.rig.rigfile import default_rig_path, load_rig
 
     keep_freed_memory()  # as a worker does before its first frame

@@ -41,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
     does not know the channel).
     """
     from channel_worker.pipeline.scene.load import SceneError, bundled_scene_path, load_scene
+    from services.rig.cli_common import security_of
     from services.rig.grpc_util import configure_logging, stop_on_signals
     from services.rig.rigfile import RigError, bind_address
 
@@ -62,16 +63,18 @@ def run(args: argparse.Namespace) -> int:
         options = from_arguments(args, base=rig.render)
         # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
         database = load_scene(args.scene or bundled_scene_path())
+        security = security_of(rig)
     except (RigError, SceneError, ValueError) as exc:
         error("worker", exc)
         return EXIT_BAD_INPUT
     # Signals first: a SIGTERM during the warm-up stops the worker right after it.
     stop = threading.Event()
     stop_on_signals(stop)
-    worker = ChannelWorker(database, channel.spec, host_address=rig.host_address,
-                           compositor_address=rig.compositor_address, options=options, once=args.once)
     try:
-        serve_worker(worker, bind_address(channel.address, args.bind), stop)
+        worker = ChannelWorker(database, channel.spec, host_address=rig.host_address,
+                               compositor_address=rig.compositor_address, options=options, once=args.once,
+                               security=security)
+        serve_worker(worker, bind_address(channel.address, args.bind), stop, security=security)
     except OSError as exc:
         error("worker", exc)
         return EXIT_FAILED

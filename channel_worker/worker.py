@@ -32,21 +32,25 @@ from ig.v1 import (
 )
 from services.rig.frame import ChannelSpec, Eyepoint
 from services.rig.grpc_util import (
+    MAX_TEXT_CHARS,
     RPC_DEADLINE_S,
     STREAM_DEADLINE_S,
+    Security,
     add_health,
+    add_service,
     bind,
+    clip,
     make_channel,
     make_server,
     set_not_serving,
     set_serving,
 )
+from services.rig.memory import keep_freed_memory
 from services.rig.options import RenderOptions
 from services.rig.report import FrameReport
 from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_proto
 
 from .pipeline.kernel_cache import serialise_cache_writes
-from .pipeline.memory import keep_freed_memory
 from .pipeline.render import render_frame
 from .pipeline.scene.database import Database
 
@@ -76,6 +80,9 @@ class WorkerCounters:
     last_frame_number: int = 0
     run_id: str = ""
     last_error: str = ""
+    runs: int = 0
+    malformed_requests: int = 0
+    resubscriptions: int = 0
 
 
 class StreamEnd(enum.Enum):
@@ -235,11 +242,12 @@ class ChannelWorker:
         options: the render options (with_range is turned off: the compositor takes colour
             only).
         once: stop when the host's run ends instead of subscribing again for the next run.
+        security: mutual TLS or plaintext to host and compositor (grpc_util.make_channel).
     """
 
     def __init__(self, database: Database, channel: ChannelSpec, *, host_address: str,
                  compositor_address: str, options: RenderOptions | None = None,
-                 once: bool = False) -> None:
+                 once: bool = False, security: Security | None = None) -> None:
         self.database = database
         self.channel = channel
         self.options = (options or RenderOptions()).replace(with_range=False)
@@ -259,8 +267,8 @@ class ChannelWorker:
         self._lock = threading.Lock()
         self._subscribed = False
         self._stream: grpc.Future | None = None
-        self._host = make_channel(host_address)
-        self._compositor = make_channel(compositor_address)
+        self._host = make_channel(host_address, security)
+        self._compositor = make_channel(compositor_address, security)
         self.host_stub = host_pb2_grpc.HostServiceStub(self._host)
         self.compositor_stub = SubmitStub(self._compositor)
         self._last_taken = -1
@@ -306,7 +314,13 @@ class ChannelWorker:
                 end = outcome[0] if outcome else StreamEnd.STOPPED
                 if end is StreamEnd.REFUSED or (end is StreamEnd.RUN_OVER and self.once):
                     break
-                stop.wait(_RESUBSCRIBE_S)
+                with self._lock:
+                    self.counters.resubscriptions += 1
+                # A run that ended normally is followed by the next one at once (the host waits
+                # for every channel before its first frame); a broken stream is retried after a
+                # pause, the channel's reconnection backoff (at most 1 s) doing the rest.
+                if end is not StreamEnd.RUN_OVER:
+                    stop.wait(_RESUBSCRIBE_S)
         finally:
             self._host.close()
             self._compositor.close()
@@ -355,7 +369,13 @@ class ChannelWorker:
 
     def _note_error(self, message: str) -> None:
         with self._lock:
-            self.counters.last_error = message
+            self.counters.last_error = clip(message)
+
+    def refuse(self, cause: str, message: str) -> None:
+        """Count a request to the worker's own server refused before it ran (add_service)."""
+        with self._lock:
+            self.counters.malformed_requests += 1
+            self.counters.last_error = clip(f"{cause}: {message}")
 
     def _handle(self, frame: frame_pb2.Frame, received: float | None = None) -> None:
         """Render one frame, submit it to the compositor and acknowledge it to the host.
@@ -371,6 +391,7 @@ class ChannelWorker:
             first_of_run = frame.run_id != c.run_id
             if first_of_run:
                 self._last_taken = -1  # frame numbers start again with each run
+                c.runs += 1
             if self._last_taken >= 0 and number > self._last_taken + 1:
                 c.frames_skipped += number - self._last_taken - 1
             self._last_taken = number
@@ -397,12 +418,12 @@ class ChannelWorker:
                 self.counters.terrain_eye_clamped += stats.get("terrain_eye_clamped", 0)
         except ValueError as exc:
             # The message names the field and value, e.g. "eyepoint.position[2]: nan is not finite".
-            error = f"frame {number} refused: {exc}"
+            error = clip(f"frame {number} refused: {exc}")
             with self._lock:
                 self.counters.frames_refused += 1
                 self.counters.last_error = error
             log.error("%s", error)
-            self._ack(number, ok=False, error=str(exc))
+            self._ack(number, frame.run_id, ok=False, error=str(exc))
             return
         render_time = time.perf_counter() - t0
         render_end = time.time()
@@ -423,15 +444,17 @@ class ChannelWorker:
             with self._lock:
                 self.counters.frames_rendered += 1
         except grpc.RpcError as exc:
-            ok, error = False, f"submit to compositor failed: {exc.code().name} {exc.details()}"
+            ok, error = False, clip(f"submit to compositor failed: {exc.code().name} {exc.details()}")
             with self._lock:
                 self.counters.submit_failures += 1
                 self.counters.last_error = f"frame {number}: {error}"
             log.error("frame %d: %s", number, error)
-        self._ack(number, ok=ok, error=error)
+        self._ack(number, frame.run_id, ok=ok, error=error)
 
-    def _ack(self, number: int, *, ok: bool, error: str) -> None:
-        request = host_pb2.AckFrameRequest(channel_name=self.channel.name, frame_number=number, ok=ok, error=error)
+    def _ack(self, number: int, run_id: str, *, ok: bool, error: str) -> None:
+        # The host refuses error text beyond MAX_TEXT_CHARS: cut it here, with room for the note.
+        request = host_pb2.AckFrameRequest(channel_name=self.channel.name, frame_number=number, ok=ok,
+                                           error=clip(error, MAX_TEXT_CHARS - 40), run_id=run_id)
         try:
             self.host_stub.AckFrame(request, timeout=RPC_DEADLINE_S)
         except grpc.RpcError as exc:
@@ -451,7 +474,8 @@ class WorkerStatusServicer(worker_pb2_grpc.ChannelWorkerServiceServicer):
         return self.worker.status()
 
 
-def serve_worker(worker: ChannelWorker, address: str, stop: threading.Event) -> None:
+def serve_worker(worker: ChannelWorker, address: str, stop: threading.Event, *,
+                 security: Security | None = None) -> None:
     """Serve the worker's health and status on address, warm up, then render; blocks until it
     is done.
 
@@ -460,12 +484,13 @@ def serve_worker(worker: ChannelWorker, address: str, stop: threading.Event) -> 
     every channel that answers, knows a compiling worker from a dead one.
 
     Raises:
-        OSError: address cannot be bound.
+        OSError: address cannot be bound, or plaintext off the loopback is not allowed.
     """
     server = make_server(max_workers=4)
-    worker_pb2_grpc.add_ChannelWorkerServiceServicer_to_server(WorkerStatusServicer(worker), server)
+    add_service(server, WorkerStatusServicer(worker), worker_pb2.DESCRIPTOR.services_by_name["ChannelWorkerService"],
+                refused=worker.refuse)
     health = add_health(server, [SERVICE], serving=worker.ready)
-    bind(server, address)
+    bind(server, address, security)
     server.start()
     log.info("worker %s: health and status on %s", worker.channel.name, address)
     try:

@@ -38,8 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=non_negative, default=None,
                         help="simulated seconds to publish (default: the whole bundled flight or replay; "
                              "until stopped with --controls or --loop)")
-    parser.add_argument("--sync-timeout", type=positive, default=10.0,
-                        help="longest wait for every channel's acknowledgement of a frame, seconds (default 10)")
+    parser.add_argument("--sync-timeout", type=positive, default=None,
+                        help="the swap barrier: longest wait for every channel's acknowledgement of a frame, "
+                             "seconds (default: the rig file's sync.frame_timeout_s, 5 unless set)")
     parser.add_argument("--start-timeout", type=non_negative, default=120.0,
                         help="before the first frame, give up on a channel that has neither subscribed nor "
                              "said it is starting for this long, seconds (default 120; a worker whose health "
@@ -78,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     """Serve HostService until the run ends or SIGTERM; 0 ok, 1 cannot listen, 2 bad input."""
     from host_sim.publisher import FramePublisher
     from host_sim.server import serve
+    from services.rig.cli_common import security_of
     from services.rig.grpc_util import configure_logging, stop_on_signals
     from services.rig.rigfile import bind_address
 
@@ -86,6 +88,11 @@ def run(args: argparse.Namespace) -> int:
         return _report(args)
     rig = load_rig_or_report(args.rig, "host")
     if rig is None:
+        return EXIT_BAD_INPUT
+    try:
+        security = security_of(rig)
+    except ValueError as exc:
+        error("host", exc)
         return EXIT_BAD_INPUT
     for needs, given, flags in (("--replay", args.replay is not None, (
             ("--replay-format", args.replay_format != "auto"), ("--speed", args.speed != 1.0),
@@ -105,16 +112,18 @@ def run(args: argparse.Namespace) -> int:
     try:
         try:
             publisher = FramePublisher(source=source, channels=rig.channel_names, rate_hz=args.rate,
-                                       duration_s=duration, sync_timeout_s=args.sync_timeout,
+                                       duration_s=duration,
+                                       sync_timeout_s=args.sync_timeout or rig.sync.frame_timeout_s,
                                        observers=args.observers, start_timeout_s=args.start_timeout,
-                                       starting=_worker_starting(rig))
+                                       starting=_worker_starting(rig, security))
         except ValueError as exc:
             error("host", exc)
             return EXIT_BAD_INPUT
         stop = threading.Event()
         stop_on_signals(stop)
         try:
-            serve(publisher, bind_address(rig.host_address, args.bind), stop, eyepoints=eyepoints)
+            serve(publisher, bind_address(rig.host_address, args.bind), stop, eyepoints=eyepoints,
+                  security=security)
         except OSError as exc:
             error("host", exc)
             return EXIT_FAILED
@@ -202,7 +211,7 @@ def _log_summary(eyepoints) -> None:
         log.info("replay %s: ended at log time %.2f s after %d loop(s)", r.path, r.log_time_s, r.loops)
 
 
-def _worker_starting(rig):
+def _worker_starting(rig, security):
     """starting(channel) for FramePublisher: whether the channel's worker answers its health
     service NOT_SERVING (compiling its kernels, rendering its warm-up frame)."""
     import grpc
@@ -213,8 +222,8 @@ def _worker_starting(rig):
 
     def starting(channel: str) -> bool:
         try:
-            return check_health(addresses[channel], timeout_s=0.5) == "NOT_SERVING"
-        except grpc.RpcError:
+            return check_health(addresses[channel], timeout_s=0.5, security=security) == "NOT_SERVING"
+        except (grpc.RpcError, OSError):
             return False
     return starting
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from ig.v1 import frame_pb2
 from services.rig.frame import Eyepoint, check_eyepoint
+from services.rig.grpc_util import clip
 from services.rig.mailbox import Mailbox
 from services.rig.wire import eyepoint_to_proto
 
@@ -45,6 +46,14 @@ class ChannelTaken(ValueError):
     """A second subscriber asked for a channel that already has one (two workers for one window)."""
 
 
+class FrameOutOfRange(ValueError):
+    """An acknowledgement of a frame number this run has not published."""
+
+
+class OtherRun(ValueError):
+    """An acknowledgement that names another run than the host's."""
+
+
 class Subscription(Mailbox[frame_pb2.Frame]):
     """One subscriber's frame queue: bounded (QUEUE_DEPTH), drop-oldest, closed at the end of
     the run."""
@@ -70,6 +79,8 @@ class HostStatus:
     finished: bool = False
     last_error: str = ""
     channel_absent: dict[str, int] = field(default_factory=dict)
+    requests_refused: dict[str, int] = field(default_factory=dict)
+    late_acks: dict[str, int] = field(default_factory=dict)
 
 
 class FramePublisher:
@@ -126,8 +137,12 @@ class FramePublisher:
         self.status.ack_timeouts = dict.fromkeys(self.channels, 0)
         self.status.ack_failures = dict.fromkeys(self.channels, 0)
         self.status.channel_absent = dict.fromkeys(self.channels, 0)
+        self.status.late_acks = dict.fromkeys(self.channels, 0)
         self._subs: list[Subscription] = []
         self._acks: dict[str, int] = {}
+        #: Number of the last frame published (-1 before the first) and of the frame the swap
+        #: barrier waits for.
+        self._published = -1
         self._lock = threading.Condition()
 
     @property
@@ -170,20 +185,49 @@ class FramePublisher:
                 self.status.queue_drops[sub.subscriber] = sub.dropped
                 self._lock.notify_all()
 
-    def ack(self, channel_name: str, frame_number: int, *, ok: bool = True, error: str = "") -> None:
-        """A channel reports it has handled frame_number.
+    def refuse(self, cause: str, message: str) -> None:
+        """Count a refused request (GetHostStatus.requests_refused) and keep its message."""
+        with self._lock:
+            self.status.requests_refused[cause] = self.status.requests_refused.get(cause, 0) + 1
+            self.status.last_error = clip(message)
+
+    def ack(self, channel_name: str, frame_number: int, *, ok: bool = True, error: str = "",
+            run_id: str = "") -> None:
+        """A channel reports it has handled frame_number (of run_id, when given).
+
+        Only a frame this run has published can be acknowledged: an acknowledgement of a later
+        one would release the swap barrier for frames the channel has never seen.
 
         Raises:
             UnknownChannel: channel_name is not a rig channel.
+            OtherRun: run_id is given and is not this run's.
+            FrameOutOfRange: frame_number has not been published.
+            Each is counted in requests_refused before it is raised.
         """
         if channel_name not in self.channels:
-            raise UnknownChannel(f"channel_name: {channel_name!r} is not a channel of the rig "
-                                 f"({', '.join(self.channels)})")
+            message = (f"channel_name: {clip(channel_name, 64)!r} is not a channel of the rig "
+                       f"({', '.join(self.channels)})")
+            self.refuse("unknown_channel", message)
+            raise UnknownChannel(message)
+        with self._lock:
+            published = self._published
+        if run_id and run_id != self.status.run_id:
+            message = f"run_id: {clip(run_id, 64)!r} is not the host's run {self.status.run_id!r}"
+            self.refuse("other_run", message)
+            raise OtherRun(message)
+        if frame_number > published:
+            message = (f"frame_number: {frame_number} has not been published (the last is "
+                       f"{published if published >= 0 else 'none yet'})")
+            self.refuse("out_of_range", f"{channel_name}: {message}")
+            raise FrameOutOfRange(message)
         with self._lock:
             if not ok:
                 self.status.ack_failures[channel_name] += 1
-                self.status.last_error = f"{channel_name}: frame {frame_number}: {error}"
-                log.warning("channel %s failed frame %d: %s", channel_name, frame_number, error)
+                self.status.last_error = clip(f"{channel_name}: frame {frame_number}: {error}")
+                log.warning("channel %s failed frame %d: %s", channel_name, frame_number, clip(error))
+            if frame_number < self._published:
+                # The barrier has moved on without this channel: the frame is shown late, if at all.
+                self.status.late_acks[channel_name] += 1
             self._acks[channel_name] = max(self._acks.get(channel_name, -1), frame_number)
             self._lock.notify_all()
 
@@ -196,7 +240,7 @@ class FramePublisher:
             return HostStatus(s.run_id, s.frames_published, s.eyepoints_rejected, s.subscriptions_rejected,
                               dict(s.ack_timeouts), dict(s.ack_failures), drops,
                               [sub.subscriber for sub in self._subs], s.finished, s.last_error,
-                              dict(s.channel_absent))
+                              dict(s.channel_absent), dict(s.requests_refused), dict(s.late_acks))
 
     def run(self, stop: threading.Event) -> None:
         """Publish the whole run (blocking), then close every subscription.
@@ -229,7 +273,10 @@ class FramePublisher:
                         self.status.last_error = f"t={sim_time:.3f}s: {exc}"
                     log.error("eyepoint refused at t=%.3f s: %s", sim_time, exc)
                     continue
-                frame = make_frame(number, sim_time, sample_time, eyepoint, self.status.run_id, self.clock())
+                with self._lock:
+                    present = self._subscribed_channels()
+                frame = make_frame(number, sim_time, sample_time, eyepoint, self.status.run_id, self.clock(),
+                                   channels=[c for c in self.channels if c in present])
                 self._publish(frame)
                 self._wait_for_acks(number, stop)
                 number += 1
@@ -244,6 +291,7 @@ class FramePublisher:
         with self._lock:
             subs = list(self._subs)
             self.status.frames_published += 1
+            self._published = frame.frame_number
         for sub in subs:
             sub.put(frame)
 
@@ -319,8 +367,9 @@ class FramePublisher:
 
 
 def make_frame(number: int, sim_time: float, sample_time: float, eyepoint: Eyepoint, run_id: str,
-               publish_time: float) -> frame_pb2.Frame:
-    """The Frame message of one eyepoint."""
+               publish_time: float, *, channels: Sequence[str] = ()) -> frame_pb2.Frame:
+    """The Frame message of one eyepoint; channels: those the host waits for on it."""
     return frame_pb2.Frame(
         frame_number=number, sim_time_s=sim_time, publish_time_unix_s=publish_time,
-        control_sample_time_unix_s=sample_time, run_id=run_id, eyepoint=eyepoint_to_proto(eyepoint))
+        control_sample_time_unix_s=sample_time, run_id=run_id, eyepoint=eyepoint_to_proto(eyepoint),
+        channels=list(channels))

@@ -9,9 +9,9 @@ from typing import Any
 import grpc
 
 from ig.v1 import host_pb2, host_pb2_grpc
-from services.rig.grpc_util import add_health, bind, make_server, set_not_serving
+from services.rig.grpc_util import Security, add_health, add_service, bind, make_server, set_not_serving
 
-from .publisher import ChannelTaken, FramePublisher, UnknownChannel
+from .publisher import ChannelTaken, FrameOutOfRange, FramePublisher, OtherRun, UnknownChannel
 
 log = logging.getLogger("ig.host")
 SERVICE = "ig.v1.HostService"
@@ -51,9 +51,14 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
 
     def AckFrame(self, request, context):
         try:
-            self.publisher.ack(request.channel_name, request.frame_number, ok=request.ok, error=request.error)
+            self.publisher.ack(request.channel_name, request.frame_number, ok=request.ok, error=request.error,
+                               run_id=request.run_id)
         except UnknownChannel as exc:
             context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+        except OtherRun as exc:
+            context.abort(grpc.StatusCode.FAILED_PRECONDITION, str(exc))
+        except FrameOutOfRange as exc:
+            context.abort(grpc.StatusCode.OUT_OF_RANGE, str(exc))
         return host_pb2.AckFrameResponse()
 
     def GetHostStatus(self, request, context):
@@ -63,7 +68,7 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
             ack_timeouts=s.ack_timeouts, ack_failures=s.ack_failures, queue_drops=s.queue_drops,
             subscriptions_rejected=s.subscriptions_rejected, subscribers=s.subscribers,
             finished=s.finished, last_error=s.last_error, channel_absent=s.channel_absent,
-            **eyepoint_source_status(self.eyepoints))
+            requests_refused=s.requests_refused, late_acks=s.late_acks, **eyepoint_source_status(self.eyepoints))
 
 
 def eyepoint_source_status(eyepoints: Any) -> dict[str, Any]:
@@ -91,17 +96,21 @@ def eyepoint_source_status(eyepoints: Any) -> dict[str, Any]:
 
 
 def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
-          linger_s: float = 2.0, eyepoints: Any = None) -> int:
+          linger_s: float = 2.0, eyepoints: Any = None, security: Security | None = None) -> int:
     """Serve the host on address and run the publisher until the run ends or stop is set.
 
     After the run it keeps answering for linger_s so that late acknowledgements and status
     requests still succeed, then stops. eyepoints is what the publisher's source belongs to
-    (HostServicer). Returns the bound port.
+    (HostServicer); security: mutual TLS or plaintext (grpc_util.bind). Returns the bound port.
+
+    Raises:
+        OSError: address cannot be bound, or plaintext off the loopback is not allowed.
     """
     server = make_server()
-    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(publisher, stop, eyepoints=eyepoints), server)
+    add_service(server, HostServicer(publisher, stop, eyepoints=eyepoints),
+                host_pb2.DESCRIPTOR.services_by_name["HostService"], refused=publisher.refuse)
     health = add_health(server, [SERVICE])
-    port = bind(server, address)
+    port = bind(server, address, security)
     server.start()
     log.info("host listening on %s (run %s, %d frames at %.1f Hz)", address, publisher.status.run_id,
              publisher.tick_count, publisher.rate_hz)

@@ -47,7 +47,7 @@ from services.rig.cli_common import (
     positive,
 )
 from services.rig.grpc_util import RPC_DEADLINE_S, make_channel
-from services.rig.rigfile import Rig, rig_toml
+from services.rig.rigfile import Rig, TlsSpec, rig_toml
 
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
@@ -121,7 +121,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--exr-every", type=every, default=30,
                         help="also write a linear EXR every N frames (default 30; 0: never)")
     parser.add_argument("--out", default="out/demo",
-                        help="output directory: frames/, report.json, rig.toml, logs/ (default out/demo)")
+                        help="output directory: runs/<run id>/frames/ and report.json (latest -> this run), "
+                             "rig.toml, logs/ (default out/demo)")
     add_rig_options(parser, out="OUT")
 
 
@@ -134,10 +135,11 @@ def free_port() -> int:
 
 def local_rig(rig: Rig) -> Rig:
     """The rig with every service on a free 127.0.0.1 port, so a demo never collides with a rig
-    already running on the fixed ports."""
+    already running on the fixed ports; plaintext, as everything stays on the loopback (a rig
+    file's [tls] table is for its machines)."""
     chans = tuple(replace(ch, address=f"127.0.0.1:{free_port()}") for ch in rig.channels)
     return replace(rig, host_address=f"127.0.0.1:{free_port()}",
-                   compositor_address=f"127.0.0.1:{free_port()}", channels=chans)
+                   compositor_address=f"127.0.0.1:{free_port()}", channels=chans, tls=TlsSpec())
 
 
 class Processes:
@@ -376,8 +378,9 @@ def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
     """
     print(f"ig {command}: measuring the rate the rig sustains ({CALIBRATION_FRAMES} frames, unthrottled) ...",
           end="", flush=True)
-    report = out / "report.json"
-    report.unlink(missing_ok=True)
+    # The compositor writes each run into runs/<run id>/ and points latest at it.
+    report = out / "latest" / "report.json"
+    (out / "latest").unlink(missing_ok=True)
     compositor = procs.start("compositor-calibration", [
         "compositor", "--rig", str(rig_path), "--out", str(out), "--record-every", "0", "--exr-every", "0",
         "--once"])
@@ -406,11 +409,11 @@ def run(args: argparse.Namespace) -> int:
         return prepared
     rig, scene_path = prepared
     out = Path(args.out)
-    frames_dir = out / "frames"
     try:
         out.mkdir(parents=True, exist_ok=True)
-        for old in list(frames_dir.glob("frame_*")) + [out / "report.json"]:
-            old.unlink(missing_ok=True)  # a previous demo's frames would mix with this one's
+        # The compositor gives every run its own runs/<run id>/ and points latest at it: a
+        # previous demo's frames stay where they are, and never mix with this one's.
+        (out / "latest").unlink(missing_ok=True)
         rig_path = out / "rig.toml"
         rig_path.write_text(rig_toml(rig))
     except OSError as exc:
@@ -441,11 +444,12 @@ def run(args: argparse.Namespace) -> int:
         if tail:
             print(f"--- last lines of {out / 'logs' / (name + '.log')} ---\n{tail}", file=sys.stderr)
         return EXIT_BAD_INPUT if code == EXIT_BAD_INPUT else EXIT_FAILED
-    report_path = out / "report.json"
+    report_path = out / "latest" / "report.json"
     if not report_path.exists():
         print(f"ig demo: no report was written; see {out / 'logs'}", file=sys.stderr)
         return EXIT_FAILED
     doc = json.loads(report_path.read_text())
+    frames_dir = Path(doc.get("frames_dir") or out / "latest" / "frames")
     print(format_report(doc))
     print(f"\n{doc['frames_complete']} stitched frames in {time.monotonic() - started:.0f} s wall-clock")
     achieved = doc.get("composite_rate_hz")

@@ -554,7 +554,7 @@ def run(args: argparse.Namespace) -> int:
     work, out = Path(args.work), Path(args.out)
     try:
         work.mkdir(parents=True, exist_ok=True)
-        (work / "report.json").unlink(missing_ok=True)
+        (work / "latest").unlink(missing_ok=True)  # the compositor points it at the run it writes
         rig_path = work / "rig.toml"
         rig_path.write_text(rig_toml(rig))
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -585,7 +585,7 @@ def run(args: argparse.Namespace) -> int:
     results, rate = outcome
     summary = summarise(results)
     verdicts = limits_verdict(summary)
-    report_path = work / "report.json"
+    report_path = work / "latest" / "report.json"
     compositor_report = json.loads(report_path.read_text()) if report_path.exists() else None
     doc = {
         "rig": {"channels": list(rig.channel_names), "width": spec.width, "height": spec.height,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import logging
 import threading
 from pathlib import Path
 
@@ -17,12 +18,15 @@ from services.rig.cli_common import (
     positive,
 )
 
+log = logging.getLogger("ig.compositor")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig compositor`."""
     add_rig_arguments(parser)
     parser.add_argument("--out", default="out/compositor",
-                        help="output directory: frames/frame_NNNNNN.png (and .exr) and report.json "
+                        help="output directory: runs/<run id>/frames/frame_NNNNNN.png (and .exr) and "
+                             "runs/<run id>/report.json for every run of the host, latest -> the newest run "
                              "(default out/compositor)")
     parser.add_argument("--record-every", type=every, default=1,
                         help="write the stitched frame as PNG every N frames (default 1; 0: never). Recording "
@@ -30,11 +34,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "counted (frames_not_recorded in report.json)")
     parser.add_argument("--exr-every", type=every, default=30,
                         help="also write a linear half-float EXR every N frames (default 30; 0: never)")
-    parser.add_argument("--pending-timeout", type=positive, default=30.0,
+    parser.add_argument("--pending-timeout", type=positive, default=None,
                         help="a frame still missing images this many seconds after it was published is "
-                             "finalised as incomplete (default 30; keep it above the host's --sync-timeout)")
-    parser.add_argument("--once", action="store_true", help="finish, write report.json and exit when the "
-                                                            "host's run ends (default: on SIGTERM)")
+                             "finalised as incomplete (default: the rig file's sync.pending_timeout_s, 10 unless "
+                             "set; keep it above the host's swap-barrier timeout)")
+    parser.add_argument("--once", action="store_true",
+                        help="finish, write the run's report.json and exit when the host's run ends (default: "
+                             "follow run after run until SIGTERM)")
     parser.add_argument("--grace", type=non_negative, default=5.0,
                         help="at the end of the run, wait this long for images of open frames, seconds "
                              "(default 5)")
@@ -53,22 +59,55 @@ def every(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Serve CompositorService until the run ends (--once) or SIGTERM; 0 ok, 1 failed, 2 bad input."""
+    from services.rig.cli_common import security_of
     from services.rig.grpc_util import configure_logging, stop_on_signals
+    from services.rig.memory import return_freed_memory
     from services.rig.rigfile import bind_address
 
+    from .blend import blend_plan, write_masks
     from .server import Compositor, serve
 
     configure_logging(args.verbose)
     rig = load_rig_or_report(args.rig, "compositor")
     if rig is None:
         return EXIT_BAD_INPUT
+    try:
+        security = security_of(rig)
+    except ValueError as exc:
+        error("compositor", exc)
+        return EXIT_BAD_INPUT
+    # Frames of a dead channel's rig come and go by the megabyte: hand freed images back to the
+    # system at once, so the compositor's memory comes down when the channel is back.
+    return_freed_memory()
+    specs = [ch.spec for ch in rig.channels]
+    plan = blend_plan(specs, rig.blend)
+    # The seam check (docs/edge-blending.md): how every pair of adjacent channels meets, from the
+    # rig file alone; a misaligned seam is reported at start and in every run's report.
+    seams = plan.report()
+    for seam in plan.seams:
+        if not seam.ok:
+            log.warning("seam %s | %s is misaligned beyond %g degrees: %s", seam.left, seam.right,
+                        rig.blend.tolerance_deg, seam.as_dict())
+    if plan.blends:
+        try:
+            write_masks(plan, Path(args.out) / "masks")
+        except OSError as exc:
+            error("compositor", f"--out: {exc}")
+            return EXIT_FAILED
     compositor = Compositor(rig.channel_names, Path(args.out), record_every=args.record_every,
-                            exr_every=args.exr_every, pending_timeout_s=args.pending_timeout)
+                            exr_every=args.exr_every,
+                            pending_timeout_s=args.pending_timeout or rig.sync.pending_timeout_s,
+                            sizes={s.name: (s.width, s.height) for s in specs},
+                            max_pending_frames=rig.sync.max_pending_frames,
+                            max_pending_bytes=int(rig.sync.max_pending_mib * 2**20),
+                            plan=plan if plan.blends else None, seams=seams)
     stop = threading.Event()
     stop_on_signals(stop)
+    # The largest message: the largest channel image (half-float RGB) and the request's fields.
+    largest = max(s.width * s.height * 6 for s in specs) + 64 * 1024
     try:
         serve(compositor, bind_address(rig.compositor_address, args.bind), rig.host_address, stop,
-              once=args.once, grace_s=args.grace)
+              once=args.once, grace_s=args.grace, security=security, max_receive_bytes=largest)
     except OSError as exc:
         error("compositor", exc)
         return EXIT_FAILED

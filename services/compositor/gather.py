@@ -11,8 +11,8 @@ import math
 import struct
 import threading
 import time
-from collections import Counter
-from collections.abc import Callable, Sequence
+from collections import Counter, deque
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -29,6 +29,17 @@ BAD_EYEPOINT = "non_finite_eyepoint"
 BAD_PIXELS = "bad_pixels"
 DUPLICATE = "duplicate_image"
 OTHER_RUN = "other_run"
+WRONG_SIZE = "wrong_size"
+UNPUBLISHED = "unpublished_frame"
+
+#: Frames beyond the last one seen published whose images are taken and held: a worker's image
+#: can overtake the compositor's own copy of the frame from the host by a few milliseconds.
+LOOKAHEAD_FRAMES = 4
+#: Decided frames remembered, to tell a late image from an image of a frame never seen; older
+#: ones count as decided (the gatherer's memory stays flat over a run of hours).
+DECIDED_MEMORY = 1024
+#: Samples kept of each per-frame figure (18 minutes at 60 Hz, 6 hours at the demo's 3 Hz).
+MAX_SAMPLES = 65536
 
 _COMPLETE = "complete"
 _EYE_FIELDS = ("x", "y", "z", "heading_deg", "pitch_deg", "roll_deg")
@@ -118,6 +129,7 @@ class _Open:
     since: float  # monotonic seconds when the compositor first heard of the frame
     published: frame_pb2.Frame | None = None  # what the host published
     images: dict[str, ChannelImage] = field(default_factory=dict)
+    nbytes: int = 0  # pixels held by images
 
 
 def eyepoint_tuple(msg: frame_pb2.Eyepoint) -> tuple[float, ...]:
@@ -143,9 +155,12 @@ class FrameGatherer:
     """Collects channel images per frame number and decides each frame's fate.
 
     A frame is decided once: complete (every channel, bitwise the published eyepoint), or
-    incomplete by cause when a newer frame completes (frames are rendered in order, so an older
-    open frame never will), when it has been open for pending_timeout_s, or at the end of the
-    run. Images for a decided frame are counted as late and dropped.
+    incomplete by cause: as soon as the channels the host waited for have delivered and one of
+    the rig's was not among them (its worker was down), when a newer frame has all its images
+    (frames are rendered in order, so an older open frame never will), when it has been open for
+    pending_timeout_s, when the open frames exceed max_pending_frames or max_pending_bytes (the
+    oldest goes first), or at the end of the run. Images for a decided frame are counted as
+    late and dropped.
 
     Args:
         channels: rig channel names in display order.
@@ -153,28 +168,48 @@ class FrameGatherer:
         pending_timeout_s: longest a frame stays open, seconds (see expire).
         monotonic: clock for pending_timeout_s, seconds.
         clock: wall clock, UNIX seconds: the time an image is received (ChannelTiming).
+        sizes: each channel's (width, height) from the rig file; an image of another size is
+            refused. None: any size.
+        max_pending_frames: frames held open at once.
+        max_pending_bytes: pixels the open frames may hold.
+        run_id: the run the gatherer collects, "" until the first published frame names it.
     """
 
     def __init__(self, channels: Sequence[str], on_complete: Callable[[CompleteFrame], None], *,
                  pending_timeout_s: float = 30.0, monotonic: Callable[[], float] = time.monotonic,
-                 clock: Callable[[], float] = time.time) -> None:
+                 clock: Callable[[], float] = time.time, sizes: Mapping[str, tuple[int, int]] | None = None,
+                 max_pending_frames: int = 16, max_pending_bytes: int = 512 * 2**20, run_id: str = "") -> None:
+        if max_pending_frames < 1 or max_pending_bytes < 1:
+            raise ValueError(f"max_pending_frames {max_pending_frames}, max_pending_bytes {max_pending_bytes}: "
+                             f"both must be >= 1")
         self.channels = tuple(channels)
         self.on_complete = on_complete
         self.pending_timeout_s = pending_timeout_s
         self.monotonic = monotonic
         self.clock = clock
+        self.sizes = dict(sizes) if sizes is not None else None
+        self.max_pending_frames = max_pending_frames
+        self.max_pending_bytes = max_pending_bytes
         self._lock = threading.Lock()
         self._open: dict[int, _Open] = {}
         self._decided: dict[int, str] = {}  # frame number -> "complete" or incomplete cause
-        self.run_id = ""
+        self._floor = -1  # frames up to this number count as decided (DECIDED_MEMORY)
+        self._bytes = 0  # pixels held by the open frames
+        self.last_published = -1
+        self.run_id = run_id
         self.frames_published = 0
         self.complete = 0
         self.incomplete: Counter[str] = Counter(dict.fromkeys(INCOMPLETE_CAUSES, 0))
+        self.evicted = 0
+        self.peak_pending_frames = 0
+        self.peak_pending_bytes = 0
         self.late_images = 0
+        self.late_by_channel: dict[str, int] = dict.fromkeys(self.channels, 0)
+        self.missing_by_channel: dict[str, int] = dict.fromkeys(self.channels, 0)
         self.rejected: Counter[str] = Counter()
         self.last_rejection = ""
         self.last_incomplete = ""
-        self.render_times: dict[str, list[float]] = {c: [] for c in self.channels}
+        self.render_times: dict[str, deque[float]] = {c: deque(maxlen=MAX_SAMPLES) for c in self.channels}
         self.skipped: dict[str, int] = dict.fromkeys(self.channels, 0)
 
     # --- inputs -----------------------------------------------------------------------------
@@ -184,29 +219,47 @@ class FrameGatherer:
             if frame.run_id != self.run_id:
                 self._new_run(frame.run_id)
             self.frames_published += 1
+            self.last_published = max(self.last_published, frame.frame_number)
             entry = self._entry(frame.frame_number)
             if entry is None:
                 return
             entry.published = frame
             ready = self._settle(frame.frame_number)
+            self._bound()
         self._emit(ready)
+
+    def accepts(self, run_id: str, frame_number: int) -> bool | None:
+        """Whether an image of run_id's frame_number passes the run and frame checks now: True;
+        False when it may once the compositor's copy of the frame has arrived (another run, or
+        a frame just ahead); None when it never will (a frame far beyond the last published)."""
+        with self._lock:
+            if run_id and self.run_id and run_id != self.run_id:
+                return False
+            if frame_number <= self.last_published + LOOKAHEAD_FRAMES:
+                return True
+            return False if frame_number <= self.last_published + 4 * LOOKAHEAD_FRAMES else None
 
     def submit(self, request: compositor_pb2.SubmitChannelImageRequest) -> None:
         """A channel delivered an image.
 
         Raises:
             InvalidSubmission: unknown channel, non-finite eyepoint, pixels of the wrong size or
-                format, another run's image, a second image for the same channel and frame. The
-                frame is not touched; the rejection is counted by cause.
+                format, another size than the rig file's, another run's image, a frame number
+                beyond the last published (LOOKAHEAD_FRAMES), a second image for the same
+                channel and frame. The frame is not touched; the rejection is counted by cause.
         """
         received = self.clock()
         try:
             image = self._validate(request, received)
             with self._lock:
                 if request.run_id and self.run_id and request.run_id != self.run_id:
-                    raise InvalidSubmission(OTHER_RUN, f"run_id: {request.run_id!r} is not the current run "
+                    raise InvalidSubmission(OTHER_RUN, f"run_id: {request.run_id[:64]!r} is not the current run "
                                                        f"{self.run_id!r}")
                 number = request.frame_number
+                if number > self.last_published + LOOKAHEAD_FRAMES:
+                    last = self.last_published if self.last_published >= 0 else "none yet"
+                    raise InvalidSubmission(UNPUBLISHED, f"frame_number: {number} has not been published "
+                                                         f"(the last is {last})")
                 entry = self._entry(number)
                 if entry is not None and image.channel in entry.images:
                     raise InvalidSubmission(DUPLICATE, f"channel_name: {image.channel!r} already delivered "
@@ -216,15 +269,25 @@ class FrameGatherer:
                 self.skipped[image.channel] = max(self.skipped[image.channel], image.frames_skipped)
                 if entry is None:
                     self.late_images += 1
+                    self.late_by_channel[image.channel] += 1
                     return
                 entry.images[image.channel] = image
+                entry.nbytes += image.rgb.nbytes
+                self._bytes += image.rgb.nbytes
                 ready = self._settle(number)
+                self._bound()
         except InvalidSubmission as exc:
             with self._lock:
                 self.rejected[exc.cause] += 1
                 self.last_rejection = str(exc)
             raise
         self._emit(ready)
+
+    def count_refused(self, cause: str, message: str) -> None:
+        """Count a submission refused before it reached submit (malformed bytes, overlong text)."""
+        with self._lock:
+            self.rejected[cause] += 1
+            self.last_rejection = message
 
     def expire(self) -> int:
         """Finalise frames open longer than pending_timeout_s as incomplete; returns how many.
@@ -263,21 +326,35 @@ class FrameGatherer:
             for number in sorted(self._open):
                 self._decide(number, MISSING_CHANNEL)
             self._decided.clear()
+            self._floor = -1
+            self.last_published = -1
         self.run_id = run_id
 
     def _entry(self, number: int) -> _Open | None:
         """The open frame number, opened now if new; None if it was decided (lock held)."""
-        if number in self._decided:
-            return None
         entry = self._open.get(number)
-        if entry is None:
-            entry = self._open[number] = _Open(since=self.monotonic())
+        if entry is not None:
+            return entry
+        if number in self._decided or number <= self._floor:
+            return None
+        entry = self._open[number] = _Open(since=self.monotonic())
+        self.peak_pending_frames = max(self.peak_pending_frames, len(self._open))
         return entry
+
+    def _bound(self) -> None:
+        """Finalise the oldest open frames while the open ones exceed their bounds (lock held)."""
+        self.peak_pending_bytes = max(self.peak_pending_bytes, self._bytes)
+        while self._open and (len(self._open) > self.max_pending_frames or self._bytes > self.max_pending_bytes):
+            oldest = min(self._open)
+            self.evicted += 1
+            self._decide(oldest, MISSING_CHANNEL, f"{len(self._open)} frames ({self._bytes / 2**20:.1f} MiB) were "
+                                                  f"open, more than {self.max_pending_frames} frames or "
+                                                  f"{self.max_pending_bytes / 2**20:.0f} MiB")
 
     def _validate(self, r: compositor_pb2.SubmitChannelImageRequest, received: float) -> ChannelImage:
         if r.channel_name not in self.channels:
-            raise InvalidSubmission(UNKNOWN_CHANNEL, f"channel_name: {r.channel_name!r} is not a channel of the rig "
-                                                     f"({', '.join(self.channels)})")
+            raise InvalidSubmission(UNKNOWN_CHANNEL, f"channel_name: {r.channel_name[:64]!r} is not a channel of "
+                                                     f"the rig ({', '.join(self.channels)})")
         if not r.HasField("eyepoint"):
             raise InvalidSubmission(BAD_EYEPOINT, "eyepoint: missing")
         for name in _EYE_FIELDS:
@@ -288,6 +365,10 @@ class FrameGatherer:
             name = compositor_pb2.PixelFormat.Name(r.pixel_format) if r.pixel_format in \
                 compositor_pb2.PixelFormat.values() else str(r.pixel_format)
             raise InvalidSubmission(BAD_PIXELS, f"pixel_format: {name} is not PIXEL_FORMAT_RGB_F16")
+        if self.sizes is not None and (r.width, r.height) != self.sizes[r.channel_name]:
+            w, h = self.sizes[r.channel_name]
+            raise InvalidSubmission(WRONG_SIZE, f"width x height: {r.width} x {r.height} is not channel "
+                                                f"{r.channel_name!r}'s {w} x {h} (rig file)")
         expected = r.width * r.height * 3 * 2
         # Each read of a bytes field hands out a fresh copy of it: read the pixels once, and keep
         # them as a view of that copy (the stitch is the only other copy the compositor makes).
@@ -304,17 +385,27 @@ class FrameGatherer:
     def _settle(self, number: int) -> list[CompleteFrame]:
         """Decide frame number if it can be decided now (lock held)."""
         entry = self._open.get(number)
-        if entry is None or entry.published is None or len(entry.images) < len(self.channels):
+        if entry is None or entry.published is None:
             return []
         published = entry.published
+        # The channels the host waited for; a frame from a host that does not list them waits
+        # for every channel of the rig.
+        expected = [c for c in published.channels if c in self.channels] or list(self.channels)
+        if any(c not in entry.images for c in expected):
+            return []
         eyepoint = eyepoint_tuple(published.eyepoint)
         wrong = [img.channel for img in entry.images.values() if not same_bits(img.eyepoint, eyepoint)]
         if wrong:
             self._decide(number, EYEPOINT_MISMATCH, f"channels {', '.join(wrong)} rendered another eyepoint")
             return []
-        # Frames are rendered in order: once a newer frame is complete, older open ones never will be.
+        # Frames are rendered in order: once a newer frame has all its images, older open ones
+        # never will.
         for older in sorted(n for n in self._open if n < number):
             self._decide(older, MISSING_CHANNEL)
+        absent = [c for c in self.channels if c not in entry.images]
+        if absent:
+            self._decide(number, MISSING_CHANNEL, f"missing {', '.join(absent)} (not subscribed to the host)")
+            return []
         images = tuple(entry.images[c] for c in self.channels)
         self._decide(number, _COMPLETE)
         return [CompleteFrame(number, published.sim_time_s, eyepoint, published.control_sample_time_unix_s, images,
@@ -322,14 +413,27 @@ class FrameGatherer:
 
     def _decide(self, number: int, outcome: str, detail: str = "") -> None:
         entry = self._open.pop(number, None)
+        if entry is not None:
+            self._bytes -= entry.nbytes
         self._decided[number] = outcome
+        while len(self._decided) > DECIDED_MEMORY:
+            oldest = next(iter(self._decided))
+            self._floor = max(self._floor, oldest)
+            del self._decided[oldest]
         if outcome == _COMPLETE:
             self.complete += 1
             return
         self.incomplete[outcome] += 1
         if outcome == MISSING_CHANNEL and entry is not None:
             missing = [c for c in self.channels if c not in entry.images]
-            detail = detail or (f"missing {', '.join(missing)}" if missing else "host frame not seen")
+            for c in missing:
+                self.missing_by_channel[c] += 1
+            if not missing:
+                detail = detail or "host frame not seen"
+            elif detail.startswith("missing"):
+                pass
+            else:
+                detail = f"missing {', '.join(missing)}" + (f"; {detail}" if detail else "")
         self.last_incomplete = f"frame {number}: {outcome}: {detail}"
 
     def _emit(self, ready: list[CompleteFrame]) -> None:
@@ -347,8 +451,16 @@ class FrameGatherer:
                 "frames_complete": self.complete,
                 "frames_incomplete": {c: self.incomplete[c] for c in INCOMPLETE_CAUSES},
                 "frames_pending": len(self._open),
+                "frames_evicted": self.evicted,
+                "missing_by_channel": dict(self.missing_by_channel),
+                "pending_bytes": self._bytes,
+                "peak_pending_frames": self.peak_pending_frames,
+                "peak_pending_bytes": self.peak_pending_bytes,
+                "max_pending_frames": self.max_pending_frames,
+                "max_pending_bytes": self.max_pending_bytes,
                 "last_incomplete": self.last_incomplete,
                 "late_images": self.late_images,
+                "late_by_channel": dict(self.late_by_channel),
                 "rejected_submissions": dict(sorted(self.rejected.items())),
                 "last_rejection": self.last_rejection,
                 "render_time": {c: percentiles(v) for c, v in self.render_times.items()},

@@ -2,29 +2,37 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
+import os
+import re
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import grpc
 from google.protobuf import json_format
 
-from ig.v1 import compositor_pb2, compositor_pb2_grpc, host_pb2, host_pb2_grpc
+from ig.v1 import compositor_pb2, compositor_pb2_grpc, frame_pb2, host_pb2, host_pb2_grpc
 from services.rig.grpc_util import (
+    MAX_MESSAGE_BYTES,
     RPC_DEADLINE_S,
     STREAM_DEADLINE_S,
+    Security,
     add_health,
+    add_service,
     bind,
     make_channel,
     make_server,
     set_not_serving,
 )
 
-from .gather import CompleteFrame, FrameGatherer, InvalidSubmission
-from .stitch import FrameRecorder, compose
+from .blend import BlendPlan
+from .gather import OTHER_RUN, UNPUBLISHED, CompleteFrame, FrameGatherer, InvalidSubmission
+from .stitch import FrameRecorder, RecorderCounts, compose
 from .timing import TimingStats
 from .watch import Watchers, summary
 
@@ -38,8 +46,33 @@ _EXPIRE_EVERY_S = 0.5
 _POLL_S = 0.5
 
 
+#: Longest a submission waits for the compositor's own copy of its frame from the host (an
+#: image can overtake it by milliseconds; a new run's first image, by the host's first frame).
+SUBMIT_WAIT_S = 1.0
+
+#: Ended runs listed in the report (the newest).
+RUNS_LISTED = 100
+
+_RUN_NAME = re.compile(r"[A-Za-z0-9_.-]{1,64}")
+
+
+@dataclass
+class _Run:
+    """One run of the host as the compositor sees it: its gatherer, timing and recorder, and
+    the directory its files go to (runs/<run_id>/ under the output directory)."""
+
+    run_id: str
+    gatherer: FrameGatherer
+    timing: TimingStats
+    recorder: FrameRecorder | None = None
+    directory: Path | None = None
+    stitch_errors: int = 0
+    host_status: dict = field(default_factory=dict)
+    ended: bool = False
+
+
 class Compositor:
-    """Gatherer, composite, timing, recorder and watchers: the run's state, shared by the
+    """Gatherer, composite, timing, recorder and watchers: the rig's state, shared by the
     servicer and the host observer.
 
     A complete frame is stitched at once, on the thread that delivered its last image (a copy of
@@ -47,73 +80,227 @@ class Compositor:
     as a display output would show it. Everything after it (the timing figures, the recording,
     the watchers) takes no more than a queue append on that thread.
 
+    Runs: the host names every run (its run id). Each run gets its own gatherer and its own
+    directory, OUT/runs/<run_id>/ (frames/ and report.json; OUT/latest links to the newest), so
+    two runs are never merged and a run never overwrites another's files. A run ends when the
+    host closes its stream (end_run) or when the first frame of another run arrives (the host
+    restarted): its open frames are then finalised and its report written.
+
     Args:
         channels: rig channel names in display order.
-        out_dir: where frames/ and report.json go.
+        out_dir: where runs/ and latest go.
         record_every: write a PNG of every N-th frame (0: never).
         exr_every: write an EXR every N frames (0: never).
         pending_timeout_s: a frame open this long is finalised as incomplete, seconds.
+        sizes: each channel's (width, height) from the rig file (None: any size).
+        max_pending_frames: frames held open at once (FrameGatherer).
+        max_pending_bytes: pixels the open frames may hold.
+        plan: edge blending of the stitch (None: channels side by side).
+        seams: the seam check of the rig (BlendPlan.report()), for the report.
     """
 
     def __init__(self, channels: Sequence[str], out_dir: Path, *, record_every: int = 1, exr_every: int = 30,
-                 pending_timeout_s: float = 30.0) -> None:
+                 pending_timeout_s: float = 30.0, sizes: Mapping[str, tuple[int, int]] | None = None,
+                 max_pending_frames: int = 16, max_pending_bytes: int = 512 * 2**20,
+                 plan: BlendPlan | None = None, seams: dict | None = None) -> None:
         self.out_dir = Path(out_dir)
-        self.recorder = FrameRecorder(self.out_dir / "frames", record_every=record_every, exr_every=exr_every)
-        self.timing = TimingStats()
+        self.channels = tuple(channels)
+        self.record_every = record_every
+        self.exr_every = exr_every
+        self.plan = plan
+        self.seams = seams or {}
+        self._pending_timeout_s = pending_timeout_s
+        self._sizes = sizes
+        self._max_pending = (max_pending_frames, max_pending_bytes)
         self.watchers = Watchers(channels)
-        self.gatherer = FrameGatherer(channels, self._on_complete, pending_timeout_s=pending_timeout_s)
         self.finished = threading.Event()
-        self.stitch_errors = 0
-        self._lock = threading.Lock()
-        #: The host's final counters (GetHostStatus after its run), for the report.
-        self.host_status: dict = {}
+        self._lock = threading.RLock()
+        self._ended: list[dict] = []
+        self._enders: list[threading.Thread] = []
+        self._run = self._new_run("")
 
-    def _on_complete(self, frame: CompleteFrame) -> None:
+    # --- runs ---------------------------------------------------------------------------------
+    @property
+    def gatherer(self) -> FrameGatherer:
+        """The current run's gatherer."""
+        with self._lock:
+            return self._run.gatherer
+
+    @property
+    def run_directory(self) -> Path | None:
+        """Where the current run's files go (None before its first frame)."""
+        with self._lock:
+            return self._run.directory
+
+    def _new_run(self, run_id: str) -> _Run:
+        """A run's state; its directory is opened now if the run is named."""
+        gatherer = FrameGatherer(self.channels, lambda f: None, run_id=run_id,
+                                 pending_timeout_s=self._pending_timeout_s, sizes=self._sizes,
+                                 max_pending_frames=self._max_pending[0], max_pending_bytes=self._max_pending[1])
+        run = _Run(run_id, gatherer, TimingStats())
+        run.gatherer.on_complete = lambda frame: self._on_complete(run, frame)
+        if run_id:
+            self._open_directory(run)
+        return run
+
+    def _open_directory(self, run: _Run, name: str = "") -> None:
+        """Give the run its directory (runs/<name or run id>) and recorder; point OUT/latest at it."""
+        # The run id names a directory: anything but a plain name (a path, say) is hashed.
+        name = name or (run.run_id if _RUN_NAME.fullmatch(run.run_id) else
+                        "run-" + hashlib.sha1(run.run_id.encode()).hexdigest()[:12])
+        directory = self.out_dir / "runs" / name
+        k = 2
+        while directory.exists():  # the same run seen again (the compositor restarted): never overwrite
+            directory = self.out_dir / "runs" / f"{name}.{k}"
+            k += 1
+        directory.mkdir(parents=True)
+        run.directory = directory
+        run.recorder = FrameRecorder(directory / "frames", record_every=self.record_every, exr_every=self.exr_every)
+        latest = self.out_dir / "latest"
+        tmp = self.out_dir / f".latest.{os.getpid()}"
+        tmp.unlink(missing_ok=True)
+        tmp.symlink_to(directory.relative_to(self.out_dir))
+        tmp.replace(latest)  # atomic: a reader sees the old run or the new one
+        log.info("run %s: writing to %s", run.run_id, directory)
+
+    def on_published(self, frame: frame_pb2.Frame) -> None:
+        """The host published a frame (the observer stream): a frame of a new run ends the
+        current run first."""
+        with self._lock:
+            run = self._run
+            if run.directory is None and not run.ended:
+                # The first run: images may already wait in the gatherer; it adopts the id.
+                run.run_id = frame.run_id
+                self._open_directory(run)
+            elif frame.run_id != run.run_id or run.ended:
+                log.info("run %s follows run %s", frame.run_id, run.run_id)
+                self._run = self._new_run(frame.run_id)
+                if not run.ended:
+                    # The host restarted without ending its stream: finalise on a thread, so
+                    # the new run's first frames are not held up by the old recorder.
+                    ender = threading.Thread(target=self._end, args=(run, 0.0), daemon=True)
+                    self._enders.append(ender)
+                    ender.start()
+                run = self._run
+        run.gatherer.on_published(frame)
+
+    def submit(self, request: compositor_pb2.SubmitChannelImageRequest) -> None:
+        """A channel delivered an image: to the current run's gatherer, after waiting up to
+        SUBMIT_WAIT_S for the compositor's copy of its frame.
+
+        Raises:
+            InvalidSubmission: as FrameGatherer.submit.
+        """
+        deadline = time.monotonic() + SUBMIT_WAIT_S
+        while self.gatherer.accepts(request.run_id, request.frame_number) is False and time.monotonic() < deadline:
+            time.sleep(0.005)
+        self.gatherer.submit(request)
+
+    def end_run(self, run_id: str, *, host_status: dict | None = None, grace_s: float = 0.0) -> None:
+        """The host's run run_id is over: wait up to grace_s for its open frames, decide them,
+        write its report."""
+        with self._lock:
+            run = self._run
+        if run.run_id == run_id and not run.ended:
+            if host_status is not None:
+                run.host_status = host_status
+            self._end(run, grace_s)
+
+    def _end(self, run: _Run, grace_s: float) -> dict:
+        deadline = time.monotonic() + grace_s
+        while run.gatherer.pending and time.monotonic() < deadline:
+            time.sleep(0.05)
+        run.gatherer.finalize_all()
+        if run.recorder is not None:
+            run.recorder.close()
+        with self._lock:
+            run.ended = True
+        doc = self._report(run)
+        if run.directory is not None:
+            _write_json(run.directory / "report.json", doc)
+        with self._lock:
+            self._ended.append({"run_id": run.run_id, "directory": str(run.directory or ""),
+                                "frames_published": doc["frames_published"],
+                                "frames_complete": doc["frames_complete"],
+                                "frames_incomplete": doc["frames_incomplete"]})
+            del self._ended[:-RUNS_LISTED]
+        log.info("run %s over: %d complete, incomplete %s", run.run_id, doc["frames_complete"],
+                 doc["frames_incomplete"])
+        return doc
+
+    def refuse(self, cause: str, message: str) -> None:
+        """Count a request refused before it reached the gatherer (add_service: malformed bytes,
+        overlong text) with the submissions refused."""
+        self.gatherer.count_refused(cause, message)
+
+    # --- frames -------------------------------------------------------------------------------
+    def _on_complete(self, run: _Run, frame: CompleteFrame) -> None:
         try:
-            composite = compose(frame)
+            composite = compose(frame, self.plan)
         except ValueError as exc:
             with self._lock:
-                self.stitch_errors += 1
+                run.stitch_errors += 1
             log.error("frame %d not stitched: %s", frame.frame_number, exc)
             return
-        self.timing.add(composite)
-        self.recorder.offer(composite)
+        run.timing.add(composite)
+        if run.recorder is not None:
+            run.recorder.offer(composite)
         self.watchers.publish(composite)
 
-    def report(self) -> dict:
-        """The report document (report.json): gatherer counters, timing, recorder counters, host
-        counters (docs/frame-lock.md, docs/latency.md)."""
-        doc = self.gatherer.report()
-        doc.update(self.timing.report())
-        counts = self.recorder.snapshot()
+    # --- report -------------------------------------------------------------------------------
+    def _report(self, run: _Run) -> dict:
+        doc = run.gatherer.report()
+        doc.update(run.timing.report())
+        counts = run.recorder.snapshot() if run.recorder is not None else RecorderCounts()
         with self._lock:
-            doc["stitch_errors"] = self.stitch_errors
-        doc["record_every"] = self.recorder.record_every
-        doc["exr_every"] = self.recorder.exr_every
+            doc["stitch_errors"] = run.stitch_errors
+            doc["run_over"] = run.ended
+            doc["runs_before"] = list(self._ended)
+        doc["record_every"] = self.record_every
+        doc["exr_every"] = self.exr_every
         doc["frames_written"] = counts.written
         doc["frames_not_recorded"] = counts.not_recorded
         doc["write_errors"] = counts.errors
-        doc["frames_dir"] = str(self.out_dir / "frames")
-        doc["host"] = self.host_status
+        doc["run_dir"] = str(run.directory or "")
+        doc["frames_dir"] = str(run.directory / "frames") if run.directory is not None else ""
+        doc["seams"] = self.seams
+        doc["host"] = run.host_status
         doc["finished"] = self.finished.is_set()
         return doc
 
+    def report(self) -> dict:
+        """The current run's report document (report.json): gatherer counters, timing, recorder
+        counters, host counters, the runs before it (docs/frame-lock.md, docs/latency.md)."""
+        with self._lock:
+            run = self._run
+        return self._report(run)
+
     def finish(self, *, grace_s: float) -> dict:
-        """End of run: wait up to grace_s seconds for open frames, decide them, write report.json."""
-        deadline = time.monotonic() + grace_s
-        while self.gatherer.pending and time.monotonic() < deadline:
-            time.sleep(0.05)
-        self.gatherer.finalize_all()
-        self.recorder.close()
+        """Stop: end the current run (waiting up to grace_s for its open frames), close the
+        watchers; returns the last run's report."""
+        with self._lock:
+            run = self._run
+            if run.directory is None:
+                # Stopped before the host published anything: the report still says so.
+                self._open_directory(run, time.strftime("no-frames-%Y%m%dT%H%M%SZ", time.gmtime()))
+        if not run.ended:
+            self._end(run, grace_s)
+        for ender in self._enders:
+            ender.join()
         self.watchers.close()
         self.finished.set()
-        doc = self.report()
-        self.out_dir.mkdir(parents=True, exist_ok=True)
-        # Written to a temporary name and renamed, so a reader never sees half a report.
-        tmp = self.out_dir / "report.json.tmp"
-        tmp.write_text(json.dumps(doc, indent=2) + "\n")
-        tmp.replace(self.out_dir / "report.json")
+        doc = self._report(run)
+        if run.directory is not None:
+            _write_json(run.directory / "report.json", doc)
         return doc
+
+
+def _write_json(path: Path, doc: dict) -> None:
+    """Write doc to path through a temporary name, so a reader never sees half a report."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=2) + "\n")
+    tmp.replace(path)
 
 
 class CompositorServicer(compositor_pb2_grpc.CompositorServiceServicer):
@@ -124,12 +311,13 @@ class CompositorServicer(compositor_pb2_grpc.CompositorServiceServicer):
 
     def SubmitChannelImage(self, request, context):
         if self.compositor.finished.is_set():
-            context.abort(grpc.StatusCode.FAILED_PRECONDITION, "the run is over; report written")
+            context.abort(grpc.StatusCode.FAILED_PRECONDITION, "the compositor has stopped; report written")
         try:
-            self.compositor.gatherer.submit(request)
+            self.compositor.submit(request)
         except InvalidSubmission as exc:
             log.warning("submission refused (%s from %s): %s", exc.cause, context.peer(), exc)
-            context.abort(grpc.StatusCode.INVALID_ARGUMENT, str(exc))
+            code = _STATUS.get(exc.cause, grpc.StatusCode.INVALID_ARGUMENT)
+            context.abort(code, str(exc))
         return compositor_pb2.SubmitChannelImageResponse()
 
     def GetCompositorReport(self, request, context):
@@ -156,53 +344,75 @@ class CompositorServicer(compositor_pb2_grpc.CompositorServiceServicer):
             self.compositor.watchers.remove(watch)
 
 
-def observe_host(compositor: Compositor, host_address: str, stop: threading.Event) -> bool:
-    """Follow the host's frame stream as an observer until its run ends; True if it did end.
+#: Status of a refused submission by cause; INVALID_ARGUMENT for the others.
+_STATUS = {OTHER_RUN: grpc.StatusCode.FAILED_PRECONDITION, UNPUBLISHED: grpc.StatusCode.OUT_OF_RANGE}
+
+
+def observe_host(compositor: Compositor, host_address: str, stop: threading.Event, *, once: bool = False,
+                 grace_s: float = 5.0, security: Security | None = None) -> bool:
+    """Follow the host's frame stream as an observer, run after run; True once a run has ended
+    (with once, after the first).
 
     Subscribes again while the host is not up yet or the stream breaks. The host closing the
-    stream normally means its run is over; the host's final counters are then kept for the report.
+    stream normally means its run is over: the host's final counters go into the run's report,
+    the run is ended (Compositor.end_run) and, without once, the next run is waited for.
     """
-    with make_channel(host_address) as channel:
+    with make_channel(host_address, security) as channel:
         stub = host_pb2_grpc.HostServiceStub(channel)
-        ended = False
-        while not stop.is_set() and not ended:
+        ended_any = False
+        while not stop.is_set():
             stream = stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="compositor"),
                                           wait_for_ready=True, timeout=STREAM_DEADLINE_S)
             # SIGTERM must not wait for the next frame: cancel the stream when stop is set.
             done = threading.Event()
             threading.Thread(target=_cancel_on_stop, args=(stream, stop, done), daemon=True).start()
+            run_id, frames = "", 0
             try:
                 for response in stream:
-                    compositor.gatherer.on_published(response.frame)
-                ended = True
+                    compositor.on_published(response.frame)
+                    run_id, frames = response.frame.run_id, frames + 1
             except grpc.RpcError as exc:
                 if stop.is_set():
-                    return False
+                    return ended_any
                 log.warning("host stream: %s %s; subscribing again", exc.code().name, exc.details())
                 stop.wait(1.0)
+                continue
             finally:
                 done.set()
-        if not ended:
-            return False
-        try:
-            s = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=RPC_DEADLINE_S)
-            compositor.host_status = {
-                "run_id": s.run_id, "frames_published": s.frames_published,
-                "eyepoints_rejected": s.eyepoints_rejected, "ack_timeouts": dict(s.ack_timeouts),
-                "ack_failures": dict(s.ack_failures), "channel_absent": dict(s.channel_absent),
-                "subscriptions_rejected": s.subscriptions_rejected, "queue_drops": dict(s.queue_drops),
-                "last_error": s.last_error,
-                # Where the eyepoints came from and what the control inputs or the replayed log
-                # refused, by cause (docs/host-inputs.md, docs/replay-formats.md).
-                "eyepoint_source": s.eyepoint_source,
-                "inputs": [json_format.MessageToDict(i, preserving_proto_field_name=True) for i in s.inputs],
-                "replay": json_format.MessageToDict(s.replay, preserving_proto_field_name=True)
-                if s.HasField("replay") else None,
-                "flight_model": json_format.MessageToDict(s.flight_model, preserving_proto_field_name=True)
-                if s.HasField("flight_model") else None}
-        except grpc.RpcError as exc:
-            log.warning("host status unavailable: %s", exc.code().name)
-        return True
+            status = _host_status(stub)
+            run_id = run_id or (status or {}).get("run_id", "")
+            compositor.end_run(run_id, host_status=status, grace_s=grace_s)
+            ended_any = True
+            if once:
+                return True
+            if frames == 0:
+                # A host that has ended its run closes new streams at once until it exits.
+                stop.wait(0.5)
+    return ended_any
+
+
+def _host_status(stub: host_pb2_grpc.HostServiceStub) -> dict | None:
+    """The host's counters for the report, None if it does not answer."""
+    try:
+        s = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=RPC_DEADLINE_S)
+    except grpc.RpcError as exc:
+        log.warning("host status unavailable: %s", exc.code().name)
+        return None
+    return {
+        "run_id": s.run_id, "frames_published": s.frames_published,
+        "eyepoints_rejected": s.eyepoints_rejected, "ack_timeouts": dict(s.ack_timeouts),
+        "ack_failures": dict(s.ack_failures), "channel_absent": dict(s.channel_absent),
+        "late_acks": dict(s.late_acks), "requests_refused": dict(s.requests_refused),
+        "subscriptions_rejected": s.subscriptions_rejected, "queue_drops": dict(s.queue_drops),
+        "last_error": s.last_error,
+        # Where the eyepoints came from and what the control inputs or the replayed log
+        # refused, by cause (docs/host-inputs.md, docs/replay-formats.md).
+        "eyepoint_source": s.eyepoint_source,
+        "inputs": [json_format.MessageToDict(i, preserving_proto_field_name=True) for i in s.inputs],
+        "replay": json_format.MessageToDict(s.replay, preserving_proto_field_name=True)
+        if s.HasField("replay") else None,
+        "flight_model": json_format.MessageToDict(s.flight_model, preserving_proto_field_name=True)
+        if s.HasField("flight_model") else None}
 
 
 def _cancel_on_stop(stream: grpc.Future, stop: threading.Event, done: threading.Event) -> None:
@@ -214,26 +424,30 @@ def _cancel_on_stop(stream: grpc.Future, stop: threading.Event, done: threading.
 
 
 def serve(compositor: Compositor, address: str, host_address: str, stop: threading.Event, *,
-          once: bool = False, grace_s: float = 5.0) -> dict:
-    """Serve the compositor on address and follow the host at host_address; returns the final report.
+          once: bool = False, grace_s: float = 5.0, security: Security | None = None,
+          max_receive_bytes: int = MAX_MESSAGE_BYTES) -> dict:
+    """Serve the compositor on address and follow the host at host_address; returns the last
+    run's report.
 
-    With once, the compositor finishes when the host's run ends; otherwise when stop is set
-    (SIGTERM). Either way it finalises open frames, writes report.json, reports NOT_SERVING and
-    stops the server.
+    With once, the compositor finishes when the host's run ends; otherwise it follows run after
+    run until stop is set (SIGTERM). Either way it finalises open frames, writes the run's
+    report.json, reports NOT_SERVING and stops the server. max_receive_bytes: the largest
+    message taken (the largest channel image of the rig and its fields).
 
     Raises:
-        OSError: address cannot be bound.
+        OSError: address cannot be bound, or plaintext off the loopback is not allowed.
     """
-    server = make_server()
-    compositor_pb2_grpc.add_CompositorServiceServicer_to_server(CompositorServicer(compositor), server)
+    server = make_server(max_receive_bytes=max_receive_bytes)
+    add_service(server, CompositorServicer(compositor), compositor_pb2.DESCRIPTOR.services_by_name["CompositorService"],
+                refused=compositor.refuse)
     health = add_health(server, [SERVICE])
-    bind(server, address)
+    bind(server, address, security)
     server.start()
     log.info("compositor listening on %s, writing to %s", address, compositor.out_dir)
     observer_done = threading.Event()
 
     def follow() -> None:
-        if observe_host(compositor, host_address, stop):
+        if observe_host(compositor, host_address, stop, once=once, grace_s=grace_s, security=security):
             observer_done.set()
 
     threading.Thread(target=follow, name="host-observer", daemon=True).start()
@@ -247,5 +461,5 @@ def serve(compositor: Compositor, address: str, host_address: str, stop: threadi
     set_not_serving(health, [SERVICE])
     server.stop(grace=1.0).wait()
     log.info("compositor done: %d complete, incomplete %s, report in %s", doc["frames_complete"],
-             doc["frames_incomplete"], compositor.out_dir / "report.json")
+             doc["frames_incomplete"], doc["run_dir"] or compositor.out_dir)
     return doc

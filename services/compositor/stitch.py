@@ -14,43 +14,86 @@ import numpy as np
 
 from services.rig.image_io import write_image
 
+from .blend import BlendPlan
 from .gather import CompleteFrame
 from .timing import Composite
 
 log = logging.getLogger("ig.compositor")
 
 
-def stitch(frame: CompleteFrame) -> np.ndarray:
-    """The channels' images side by side in rig order, (H, sum W, 3) float16 linear.
+def stitch(frame: CompleteFrame, plan: BlendPlan | None = None) -> np.ndarray:
+    """The channels' images side by side in rig order, (H, W, 3) float16 linear.
 
-    One copy of the pixels, in the format they arrived in: widening to float32 here would take
-    four times as long (20 ms for three 1024 x 768 channels) on the way to the composite; the
-    recorder widens what it writes, on its own thread.
+    Without a plan, or with one whose seams all abut, W is the sum of the widths and the
+    result a plain concatenation: one copy of the pixels, in the format they arrived in
+    (widening to float32 here would take four times as long, 20 ms for three 1024 x 768
+    channels, on the way to the composite; the recorder widens what it writes, on its own
+    thread). With overlaps, W is plan.stitched_width and each seam's overlap columns are the
+    two channels cross-faded with the plan's linear-light weights, in float32 (float16 products
+    would lose a bit in the ramp), the rest copied as it came.
+
+    Args:
+        frame: a complete frame, images in rig order.
+        plan: the rig's blend_plan (built from the channels at the size they are rendered).
 
     Raises:
-        ValueError: the channels differ in height (a rig of unequal rows cannot be stitched).
+        ValueError: the channels differ in height (a rig of unequal rows cannot be stitched), or
+            their number or widths are not the plan's.
     """
     heights = {img.rgb.shape[0] for img in frame.images}
     if len(heights) != 1:
         raise ValueError(f"frame {frame.frame_number}: channel heights {sorted(heights)} differ")
-    return np.concatenate([img.rgb for img in frame.images], axis=1)
+    if plan is not None:
+        widths = tuple(img.rgb.shape[1] for img in frame.images)
+        if widths != plan.widths:
+            raise ValueError(f"frame {frame.frame_number}: channel widths {list(widths)} are not the "
+                             f"blend plan's {list(plan.widths)}")
+    if plan is None or not plan.blends:
+        return np.concatenate([img.rgb for img in frame.images], axis=1)
+    out = np.empty((heights.pop(), plan.stitched_width, 3), np.float16)
+    for i, img in enumerate(frame.images):
+        # The columns this channel shows alone: between its left and right overlaps.
+        nl, nr = plan.left_weights[i].size, plan.right_weights[i].size
+        width = plan.widths[i]
+        x = plan.offsets[i]
+        out[:, x + nl:x + width - nr] = img.rgb[:, nl:width - nr]
+    for i, n in enumerate(plan.overlaps):
+        if n == 0:
+            continue
+        a = frame.images[i].rgb[:, plan.widths[i] - n:].astype(np.float32)
+        b = frame.images[i + 1].rgb[:, :n].astype(np.float32)
+        a *= plan.right_weights[i][None, :, None]
+        b *= plan.left_weights[i + 1][None, :, None]
+        a += b
+        x = plan.offsets[i + 1]
+        out[:, x:x + n] = a  # float32 -> float16, rounded to nearest
+    return out
 
 
-def compose(frame: CompleteFrame, *, clock: Callable[[], float] = time.time) -> Composite:
+def compose(frame: CompleteFrame, plan: BlendPlan | None = None, *,
+            clock: Callable[[], float] = time.time) -> Composite:
     """The composite of a complete frame: stitched now, and time-stamped when it is done.
 
     The channel images of the returned frame are views of the composite, so the buffers they
     arrived in are freed and a composite waiting for the recorder or a watcher holds one copy
-    of the pixels.
+    of the pixels. With a blending plan each view starts at the channel's offset and is as wide
+    as the channel, so adjacent views share (and show blended) the overlap columns.
+
+    Args:
+        frame: a complete frame, images in rig order.
+        plan: the rig's blend_plan; None stitches side by side.
+        clock: UNIX seconds, for the composite's time stamp.
 
     Raises:
         ValueError: as stitch.
     """
-    rgb = stitch(frame)
+    rgb = stitch(frame, plan)
     done = clock()
     images, x = [], 0
-    for img in frame.images:
+    for i, img in enumerate(frame.images):
         width = img.rgb.shape[1]
+        if plan is not None:
+            x = plan.offsets[i]
         images.append(replace(img, rgb=rgb[:, x:x + width]))
         x += width
     return Composite(replace(frame, images=tuple(images)), rgb, done)

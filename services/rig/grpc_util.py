@@ -6,12 +6,14 @@ import ipaddress
 import logging
 import signal
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from concurrent import futures
 from dataclasses import dataclass
 from pathlib import Path
 
 import grpc
+from google.protobuf import message, message_factory
+from google.protobuf.descriptor import FieldDescriptor, ServiceDescriptor
 from grpc_health.v1 import health, health_pb2, health_pb2_grpc
 
 #: Large enough for a 4096 x 4096 half-float RGB image (96 MiB) plus headers.
@@ -144,6 +146,98 @@ def make_channel(address: str, security: Security | None = None) -> grpc.Channel
                                              certificate_chain=security.cert)
         return grpc.secure_channel(address, creds, options=_CHANNEL_OPTIONS)
     return grpc.insecure_channel(address, options=_CHANNEL_OPTIONS)
+
+
+#: Causes under which add_service's checks count a refused request.
+MALFORMED = "malformed"
+TEXT_TOO_LONG = "text_too_long"
+
+
+@dataclass(frozen=True)
+class _Malformed:
+    """What the lenient deserialiser hands on for bytes that are not the request message."""
+
+    type_name: str
+    detail: str
+
+
+def add_service(server: grpc.Server, servicer: object, service: ServiceDescriptor, *,
+                refused: Callable[[str, str], None]) -> None:
+    """Register servicer's methods for service, as the generated add_*_to_server does, with two
+    checks before any method runs:
+
+    - bytes that do not parse as the request message are refused with INVALID_ARGUMENT naming
+      the message type (the generated code answers them with a bare INTERNAL "Exception
+      deserializing request!");
+    - a top-level text field longer than MAX_TEXT_CHARS is refused with INVALID_ARGUMENT naming
+      the field and its length.
+
+    Each refusal calls refused(cause, message) (cause MALFORMED or TEXT_TOO_LONG) so the service
+    counts it, and the service goes on.
+    """
+    handlers = {}
+    for method in service.methods:
+        request_class = message_factory.GetMessageClass(method.input_type)
+        response_class = message_factory.GetMessageClass(method.output_type)
+        texts = [f.name for f in method.input_type.fields
+                 if f.type == FieldDescriptor.TYPE_STRING and not _repeated(f)]
+        behaviour = getattr(servicer, method.name)
+        check = _checker(method.input_type.full_name, texts, refused)
+        if method.client_streaming:
+            raise ValueError(f"{service.full_name}.{method.name}: client streaming is not used by the rig")
+        if method.server_streaming:
+            handler = grpc.unary_stream_rpc_method_handler(
+                _checked_stream(behaviour, check), request_deserializer=_lenient(request_class),
+                response_serializer=response_class.SerializeToString)
+        else:
+            handler = grpc.unary_unary_rpc_method_handler(
+                _checked_unary(behaviour, check), request_deserializer=_lenient(request_class),
+                response_serializer=response_class.SerializeToString)
+        handlers[method.name] = handler
+    server.add_generic_rpc_handlers((grpc.method_handlers_generic_handler(service.full_name, handlers),))
+    server.add_registered_method_handlers(service.full_name, handlers)
+
+
+def _repeated(field: FieldDescriptor) -> bool:
+    return bool(field.is_repeated)
+
+
+def _lenient(request_class):
+    def deserialize(data: bytes):
+        try:
+            return request_class.FromString(data)
+        except message.DecodeError as exc:
+            return _Malformed(request_class.DESCRIPTOR.full_name, str(exc) or "cannot parse")
+    return deserialize
+
+
+def _checker(type_name: str, texts: list[str], refused: Callable[[str, str], None]):
+    def check(request, context) -> None:
+        if isinstance(request, _Malformed):
+            text = f"malformed {request.type_name}: {request.detail}"
+            refused(MALFORMED, text)
+            context.abort(grpc.StatusCode.INVALID_ARGUMENT, text)
+        for name in texts:
+            value = getattr(request, name)
+            if len(value) > MAX_TEXT_CHARS:
+                text = f"{type_name}.{name}: {len(value)} characters, more than the {MAX_TEXT_CHARS} allowed"
+                refused(TEXT_TOO_LONG, text)
+                context.abort(grpc.StatusCode.INVALID_ARGUMENT, text)
+    return check
+
+
+def _checked_unary(behaviour, check):
+    def handle(request, context):
+        check(request, context)
+        return behaviour(request, context)
+    return handle
+
+
+def _checked_stream(behaviour, check):
+    def handle(request, context):
+        check(request, context)
+        yield from behaviour(request, context)
+    return handle
 
 
 def add_health(server: grpc.Server, services: Iterable[str], *,

@@ -11,6 +11,10 @@ from typing import Any
 from .frame import MAX_CHANNEL_PIXELS, ChannelSpec
 from .options import RenderOptions
 
+#: Channels a rig may have: the swap barrier and the compositor's bounds scale with it, and
+#: no projection dome uses more.
+MAX_CHANNELS = 64
+
 
 class RigError(ValueError):
     """A rig file that cannot be used; the message names the file, the key and the value."""
@@ -183,6 +187,8 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
     chans = doc.get("channels")
     if not isinstance(chans, list) or not chans:
         raise fail("channels", "expected at least one [[channels]] table")
+    if len(chans) > MAX_CHANNELS:
+        raise fail("channels", f"{len(chans)} channels, more than the {MAX_CHANNELS} a rig may have")
     out: list[RigChannel] = []
     for i, ch in enumerate(chans):
         where = f"channels[{i}]"

@@ -69,7 +69,9 @@ def test_stream_ack_status_health_and_refusals(host):
 
         status = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=10)
         assert status.finished and status.frames_published == pub.tick_count
-        assert status.subscriptions_rejected == 1 and "'middle'" in status.last_error
+        # The refused subscription is counted; the last error is the refused acknowledgement's.
+        assert status.subscriptions_rejected == 1 and "'bogus'" in status.last_error
+        assert dict(status.requests_refused) == {"unknown_channel": 1}
         assert dict(status.ack_timeouts) == {"left": 0, "right": 0}
         assert dict(status.channel_absent) == {"left": 0, "right": 0}
 

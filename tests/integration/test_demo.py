@@ -41,7 +41,7 @@ def test_ctrl_c_stops_every_process(tmp_path):
     while time.monotonic() < deadline and len(processes_mentioning(rig)) < 5:
         time.sleep(0.2)
     assert len(processes_mentioning(rig)) == 5
-    while time.monotonic() < deadline and not list((out / "frames").glob("frame_*.png")):
+    while time.monotonic() < deadline and not list((out / "latest" / "frames").glob("frame_*.png")):
         time.sleep(0.2)
     demo.send_signal(signal.SIGINT)
     output, _ = demo.communicate(timeout=60)
@@ -88,11 +88,11 @@ def test_the_rate_is_what_the_rig_sustains_and_recording_never_holds_it_up(tmp_p
     frames, rate, every = int(match[1]), float(match[2]), int(match[3])
     assert 0 < rate <= 60.0 and frames == round(0.5 * rate) + 1
     assert every == record_every_for(rate) == max(1, math.floor(rate))  # a PNG per simulated second
-    report = json.loads((out / "report.json").read_text())
+    report = json.loads((out / "latest" / "report.json").read_text())
     assert report["frames_complete"] == report["frames_published"] == frames
     assert report["record_every"] == every
     due = len(range(0, frames, every))
-    pngs = list((out / "frames").glob("frame_*.png"))
+    pngs = list((out / "latest" / "frames").glob("frame_*.png"))
     assert len(pngs) + report["frames_not_recorded"] == due
     assert all(int(p.stem.split("_")[1]) % every == 0 for p in pngs)
     assert report["composite_rate_hz"] > 0

@@ -73,7 +73,7 @@ def replay_run(tmp_path_factory):
                 proc.wait()
         for f in logs.values():
             f.close()
-    report_path = out / "report.json"
+    report_path = out / "latest" / "report.json"
     return {"rig": rig, "out": out, "log": log, "codes": codes,
             "logs": {n: (tmp / f"{n}.log").read_text() for n in argv},
             "report": json.loads(report_path.read_text()) if report_path.exists() else {}}
@@ -102,7 +102,7 @@ def test_the_replay_runs_to_its_end_and_every_process_exits_cleanly(replay_run):
 
 def test_every_stitched_frame_has_the_replayed_eyepoint(replay_run):
     replay = expected_replay(replay_run["log"])
-    exrs = sorted((replay_run["out"] / "frames").glob("frame_*.exr"))
+    exrs = sorted((replay_run["out"] / "latest" / "frames").glob("frame_*.exr"))
     assert exrs
     for path in exrs:
         n = int(path.stem.split("_")[1])
@@ -122,7 +122,7 @@ def test_the_channels_are_renders_of_the_replayed_eyepoint(replay_run):
     database = load_scene(bundled_scene_path())
     replay = expected_replay(replay_run["log"])
     n = 15
-    pixels, _ = read_image(replay_run["out"] / "frames" / f"frame_{n:06d}.exr")
+    pixels, _ = read_image(replay_run["out"] / "latest" / "frames" / f"frame_{n:06d}.exr")
     eyepoint = replay.eyepoint_at(n / RATE)
     for i, ch in enumerate(replay_run["rig"].channels):
         expected = render_frame(database, ch.spec, eyepoint, RenderOptions(samples=1)).rgb.astype(np.float16)

@@ -98,7 +98,7 @@ def rig_run(tmp_path_factory):
         for f in logs.values():
             f.close()
     result["logs"] = {name: (tmp / f"{name}.log").read_text() for name in logs}
-    report = out / "report.json"
+    report = out / "latest" / "report.json"
     result["report"] = json.loads(report.read_text()) if report.exists() else {}
     return result
 
@@ -157,14 +157,14 @@ def test_every_frame_is_complete_and_stitched_from_the_same_frame(rig_run):
     assert report["frames_skipped"] == {"left": 0, "centre": 0, "right": 0}
     assert report["host"]["ack_timeouts"] == {"left": 0, "centre": 0, "right": 0}
     assert report["host"]["eyepoint_source"] == "bundled" and report["host"]["inputs"] == []
-    pngs = sorted((rig_run["out"] / "frames").glob("frame_*.png"))
+    pngs = sorted((rig_run["out"] / "latest" / "frames").glob("frame_*.png"))
     assert len(pngs) == EXPECTED
     for png in pngs:
         pixels, attrs = read_image(png)
         assert pixels.shape == (H, 3 * W, 3)
         assert attrs["channels"] == "left,centre,right"
         assert int(attrs["frame_number"]) == int(png.stem.split("_")[1])
-    exrs = sorted((rig_run["out"] / "frames").glob("frame_*.exr"))
+    exrs = sorted((rig_run["out"] / "latest" / "frames").glob("frame_*.exr"))
     assert [p.stem for p in exrs] == [f"frame_{n:06d}" for n in range(0, EXPECTED, 10)]
     for p in ("p50_ms", "p95_ms", "p99_ms"):
         assert report["control_to_composite_latency"][p] > 0
@@ -188,7 +188,7 @@ def test_each_third_of_a_stitched_frame_is_its_channel_at_the_published_eyepoint
     database = load_scene(bundled_scene_path())
     flight = bundled_flight()
     for n in (10, EXPECTED - 1 - (EXPECTED - 1) % 10):
-        pixels, attrs = read_image(rig_run["out"] / "frames" / f"frame_{n:06d}.exr")
+        pixels, attrs = read_image(rig_run["out"] / "latest" / "frames" / f"frame_{n:06d}.exr")
         eyepoint = flight.eyepoint_at(n / RATE)
         x, y, z, h, p, r = (float(v) for v in attrs["eyepoint"].split())
         assert (x, y, z, h, p, r) == (*eyepoint.position, eyepoint.heading_deg, eyepoint.pitch_deg,
@@ -248,5 +248,5 @@ def test_sigterm_stops_every_service_cleanly(tmp_path):
             f.close()
     assert codes == {"host": 0, "compositor": 0, "worker-left": 0}, \
         {n: (tmp_path / f"{n}.log").read_text() for n in procs}
-    report = json.loads((out / "report.json").read_text())
+    report = json.loads((out / "latest" / "report.json").read_text())
     assert report["frames_published"] == 0 and report["finished"]

@@ -1,6 +1,7 @@
+from google.protobuf.internal import containers as _containers
 from google.protobuf import descriptor as _descriptor
 from google.protobuf import message as _message
-from collections.abc import Mapping as _Mapping
+from collections.abc import Iterable as _Iterable, Mapping as _Mapping
 from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 
 DESCRIPTOR: _descriptor.FileDescriptor
@@ -22,17 +23,19 @@ class Eyepoint(_message.Message):
     def __init__(self, x: _Optional[float] = ..., y: _Optional[float] = ..., z: _Optional[float] = ..., heading_deg: _Optional[float] = ..., pitch_deg: _Optional[float] = ..., roll_deg: _Optional[float] = ...) -> None: ...
 
 class Frame(_message.Message):
-    __slots__ = ("frame_number", "sim_time_s", "publish_time_unix_s", "control_sample_time_unix_s", "eyepoint", "run_id")
+    __slots__ = ("frame_number", "sim_time_s", "publish_time_unix_s", "control_sample_time_unix_s", "eyepoint", "run_id", "channels")
     FRAME_NUMBER_FIELD_NUMBER: _ClassVar[int]
     SIM_TIME_S_FIELD_NUMBER: _ClassVar[int]
     PUBLISH_TIME_UNIX_S_FIELD_NUMBER: _ClassVar[int]
     CONTROL_SAMPLE_TIME_UNIX_S_FIELD_NUMBER: _ClassVar[int]
     EYEPOINT_FIELD_NUMBER: _ClassVar[int]
     RUN_ID_FIELD_NUMBER: _ClassVar[int]
+    CHANNELS_FIELD_NUMBER: _ClassVar[int]
     frame_number: int
     sim_time_s: float
     publish_time_unix_s: float
     control_sample_time_unix_s: float
     eyepoint: Eyepoint
     run_id: str
-    def __init__(self, frame_number: _Optional[int] = ..., sim_time_s: _Optional[float] = ..., publish_time_unix_s: _Optional[float] = ..., control_sample_time_unix_s: _Optional[float] = ..., eyepoint: _Optional[_Union[Eyepoint, _Mapping]] = ..., run_id: _Optional[str] = ...) -> None: ...
+    channels: _containers.RepeatedScalarFieldContainer[str]
+    def __init__(self, frame_number: _Optional[int] = ..., sim_time_s: _Optional[float] = ..., publish_time_unix_s: _Optional[float] = ..., control_sample_time_unix_s: _Optional[float] = ..., eyepoint: _Optional[_Union[Eyepoint, _Mapping]] = ..., run_id: _Optional[str] = ..., channels: _Optional[_Iterable[str]] = ...) -> None: ...

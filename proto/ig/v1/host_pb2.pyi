@@ -22,16 +22,18 @@ class SubscribeFramesResponse(_message.Message):
     def __init__(self, frame: _Optional[_Union[_frame_pb2.Frame, _Mapping]] = ...) -> None: ...
 
 class AckFrameRequest(_message.Message):
-    __slots__ = ("channel_name", "frame_number", "ok", "error")
+    __slots__ = ("channel_name", "frame_number", "ok", "error", "run_id")
     CHANNEL_NAME_FIELD_NUMBER: _ClassVar[int]
     FRAME_NUMBER_FIELD_NUMBER: _ClassVar[int]
     OK_FIELD_NUMBER: _ClassVar[int]
     ERROR_FIELD_NUMBER: _ClassVar[int]
+    RUN_ID_FIELD_NUMBER: _ClassVar[int]
     channel_name: str
     frame_number: int
     ok: bool
     error: str
-    def __init__(self, channel_name: _Optional[str] = ..., frame_number: _Optional[int] = ..., ok: _Optional[bool] = ..., error: _Optional[str] = ...) -> None: ...
+    run_id: str
+    def __init__(self, channel_name: _Optional[str] = ..., frame_number: _Optional[int] = ..., ok: _Optional[bool] = ..., error: _Optional[str] = ..., run_id: _Optional[str] = ...) -> None: ...
 
 class AckFrameResponse(_message.Message):
     __slots__ = ()
@@ -42,7 +44,7 @@ class GetHostStatusRequest(_message.Message):
     def __init__(self) -> None: ...
 
 class GetHostStatusResponse(_message.Message):
-    __slots__ = ("run_id", "frames_published", "eyepoints_rejected", "ack_timeouts", "ack_failures", "queue_drops", "subscriptions_rejected", "subscribers", "finished", "last_error", "channel_absent", "eyepoint_source", "inputs", "replay", "flight_model")
+    __slots__ = ("run_id", "frames_published", "eyepoints_rejected", "ack_timeouts", "ack_failures", "queue_drops", "subscriptions_rejected", "subscribers", "finished", "last_error", "channel_absent", "eyepoint_source", "inputs", "replay", "flight_model", "requests_refused", "late_acks")
     class AckTimeoutsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -71,6 +73,20 @@ class GetHostStatusResponse(_message.Message):
         key: str
         value: int
         def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class RequestsRefusedEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class LateAcksEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
     RUN_ID_FIELD_NUMBER: _ClassVar[int]
     FRAMES_PUBLISHED_FIELD_NUMBER: _ClassVar[int]
     EYEPOINTS_REJECTED_FIELD_NUMBER: _ClassVar[int]
@@ -86,6 +102,8 @@ class GetHostStatusResponse(_message.Message):
     INPUTS_FIELD_NUMBER: _ClassVar[int]
     REPLAY_FIELD_NUMBER: _ClassVar[int]
     FLIGHT_MODEL_FIELD_NUMBER: _ClassVar[int]
+    REQUESTS_REFUSED_FIELD_NUMBER: _ClassVar[int]
+    LATE_ACKS_FIELD_NUMBER: _ClassVar[int]
     run_id: str
     frames_published: int
     eyepoints_rejected: int
@@ -101,7 +119,9 @@ class GetHostStatusResponse(_message.Message):
     inputs: _containers.RepeatedCompositeFieldContainer[InputSourceStatus]
     replay: ReplayStatus
     flight_model: FlightModelStatus
-    def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ..., channel_absent: _Optional[_Mapping[str, int]] = ..., eyepoint_source: _Optional[str] = ..., inputs: _Optional[_Iterable[_Union[InputSourceStatus, _Mapping]]] = ..., replay: _Optional[_Union[ReplayStatus, _Mapping]] = ..., flight_model: _Optional[_Union[FlightModelStatus, _Mapping]] = ...) -> None: ...
+    requests_refused: _containers.ScalarMap[str, int]
+    late_acks: _containers.ScalarMap[str, int]
+    def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ..., channel_absent: _Optional[_Mapping[str, int]] = ..., eyepoint_source: _Optional[str] = ..., inputs: _Optional[_Iterable[_Union[InputSourceStatus, _Mapping]]] = ..., replay: _Optional[_Union[ReplayStatus, _Mapping]] = ..., flight_model: _Optional[_Union[FlightModelStatus, _Mapping]] = ..., requests_refused: _Optional[_Mapping[str, int]] = ..., late_acks: _Optional[_Mapping[str, int]] = ...) -> None: ...
 
 class InputSourceStatus(_message.Message):
     __slots__ = ("name", "accepted", "rejected", "stale", "last_input_age_s", "last_rejection", "counters", "values")

@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from ig.v1 import render_pb2 as ig_dot_v1_dot_render__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x12ig/v1/worker.proto\x12\x05ig.v1\x1a\x12ig/v1/render.proto\"\x18\n\x16GetWorkerStatusRequest\"\xf9\x03\n\x17GetWorkerStatusResponse\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x12\n\nsubscribed\x18\x02 \x01(\x08\x12\x0e\n\x06run_id\x18\x03 \x01(\t\x12\x19\n\x11last_frame_number\x18\x04 \x01(\x04\x12\x16\n\x0e\x66rames_handled\x18\x05 \x01(\x04\x12\x17\n\x0f\x66rames_rendered\x18\x06 \x01(\x04\x12\x16\n\x0e\x66rames_skipped\x18\x07 \x01(\x04\x12\x16\n\x0e\x66rames_refused\x18\x08 \x01(\x04\x12\x17\n\x0fsubmit_failures\x18\t \x01(\x04\x12\x14\n\x0c\x61\x63k_failures\x18\n \x01(\x04\x12\x12\n\nlast_error\x18\x0b \x01(\t\x12\x1b\n\x13translucent_dropped\x18\x0c \x01(\x04\x12!\n\x19terrain_voxels_last_frame\x18\r \x01(\x04\x12\x1c\n\x14terrain_voxels_total\x18\x0e \x01(\x04\x12\x1b\n\x13terrain_eye_clamped\x18\x0f \x01(\x04\x12,\n\x0erender_options\x18\x10 \x01(\x0b\x32\x14.ig.v1.RenderOptions\x12-\n\x11last_frame_report\x18\x11 \x01(\x0b\x32\x12.ig.v1.FrameReport\x12\r\n\x05ready\x18\x12 \x01(\x08\x32h\n\x14\x43hannelWorkerService\x12P\n\x0fGetWorkerStatus\x12\x1d.ig.v1.GetWorkerStatusRequest\x1a\x1e.ig.v1.GetWorkerStatusResponseb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x12ig/v1/worker.proto\x12\x05ig.v1\x1a\x12ig/v1/render.proto\"\x18\n\x16GetWorkerStatusRequest\"\xbc\x04\n\x17GetWorkerStatusResponse\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x12\n\nsubscribed\x18\x02 \x01(\x08\x12\x0e\n\x06run_id\x18\x03 \x01(\t\x12\x19\n\x11last_frame_number\x18\x04 \x01(\x04\x12\x16\n\x0e\x66rames_handled\x18\x05 \x01(\x04\x12\x17\n\x0f\x66rames_rendered\x18\x06 \x01(\x04\x12\x16\n\x0e\x66rames_skipped\x18\x07 \x01(\x04\x12\x16\n\x0e\x66rames_refused\x18\x08 \x01(\x04\x12\x17\n\x0fsubmit_failures\x18\t \x01(\x04\x12\x14\n\x0c\x61\x63k_failures\x18\n \x01(\x04\x12\x12\n\nlast_error\x18\x0b \x01(\t\x12\x1b\n\x13translucent_dropped\x18\x0c \x01(\x04\x12!\n\x19terrain_voxels_last_frame\x18\r \x01(\x04\x12\x1c\n\x14terrain_voxels_total\x18\x0e \x01(\x04\x12\x1b\n\x13terrain_eye_clamped\x18\x0f \x01(\x04\x12,\n\x0erender_options\x18\x10 \x01(\x0b\x32\x14.ig.v1.RenderOptions\x12-\n\x11last_frame_report\x18\x11 \x01(\x0b\x32\x12.ig.v1.FrameReport\x12\r\n\x05ready\x18\x12 \x01(\x08\x12\x0c\n\x04runs\x18\x13 \x01(\x04\x12\x1a\n\x12malformed_requests\x18\x14 \x01(\x04\x12\x17\n\x0fresubscriptions\x18\x15 \x01(\x04\x32h\n\x14\x43hannelWorkerService\x12P\n\x0fGetWorkerStatus\x12\x1d.ig.v1.GetWorkerStatusRequest\x1a\x1e.ig.v1.GetWorkerStatusResponseb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -35,7 +35,7 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_GETWORKERSTATUSREQUEST']._serialized_start=49
   _globals['_GETWORKERSTATUSREQUEST']._serialized_end=73
   _globals['_GETWORKERSTATUSRESPONSE']._serialized_start=76
-  _globals['_GETWORKERSTATUSRESPONSE']._serialized_end=581
-  _globals['_CHANNELWORKERSERVICE']._serialized_start=583
-  _globals['_CHANNELWORKERSERVICE']._serialized_end=687
+  _globals['_GETWORKERSTATUSRESPONSE']._serialized_end=648
+  _globals['_CHANNELWORKERSERVICE']._serialized_start=650
+  _globals['_CHANNELWORKERSERVICE']._serialized_end=754
 # @@protoc_insertion_point(module_scope)

@@ -36,7 +36,7 @@ def req(n, ch, **kw):
 def test_submit_report_health_and_invalid_argument(served, tmp_path):
     comp, address = served
     assert check_health(address) == "SERVING"
-    comp.gatherer.on_published(frame_pb2.Frame(frame_number=0, eyepoint=frame_pb2.Eyepoint(x=1.0, y=2.0, z=3.0)))
+    comp.on_published(frame_pb2.Frame(frame_number=0, eyepoint=frame_pb2.Eyepoint(x=1.0, y=2.0, z=3.0)))
     with make_channel(address) as ch:
         stub = compositor_pb2_grpc.CompositorServiceStub(ch)
         stub.SubmitChannelImage(req(0, "a"), timeout=5)
@@ -60,9 +60,9 @@ def test_submit_report_health_and_invalid_argument(served, tmp_path):
         with pytest.raises(grpc.RpcError) as err:  # after the report, nothing more is accepted
             stub.SubmitChannelImage(req(1, "a"), timeout=5)
         assert err.value.code() == grpc.StatusCode.FAILED_PRECONDITION
-    pixels, attrs = read_image(tmp_path / "frames" / "frame_000000.exr")
+    pixels, attrs = read_image(tmp_path / "latest" / "frames" / "frame_000000.exr")
     assert pixels.shape == (2, 6, 3) and attrs["channels"] == "a,b"
-    assert json.loads((tmp_path / "report.json").read_text())["frames_complete"] == 1
+    assert json.loads((tmp_path / "latest" / "report.json").read_text())["frames_complete"] == 1
 
 
 def wait_until(predicate, timeout_s=10.0):
@@ -94,7 +94,7 @@ def test_watch_composites_streams_time_stamps_and_row_profiles(served):
                                       timeout=30)
         wait_until(lambda: len(comp.watchers) == 1)
         base = 1_700_000_000.0
-        comp.gatherer.on_published(frame_pb2.Frame(
+        comp.on_published(frame_pb2.Frame(
             frame_number=0, run_id="r", sim_time_s=0.5, eyepoint=frame_pb2.Eyepoint(x=1.0, y=2.0, z=3.0),
             control_sample_time_unix_s=base, publish_time_unix_s=base + 0.001))
         stub.SubmitChannelImage(stamped(0, "a", base, np.zeros((2, 3, 3), "<f2")), timeout=5)

@@ -4,7 +4,7 @@ import sys
 import numpy as np
 import pytest
 
-from channel_worker.pipeline.memory import keep_freed_memory
+from services.rig.memory import keep_freed_memory
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc",
