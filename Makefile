@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 RUN_STAMP := $(VENV)/.installed-run
 
-.PHONY: demo test check bench clean proto
+.PHONY: demo test check bench clean proto certs
 
 # --no-compile: pip would byte-compile every installed module (15 s on the development
 # machine); Python compiles those a run imports, when it imports them (measured on a fresh clone:
@@ -28,6 +28,14 @@ demo: $(RUN_STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest
+
+# A test CA and one certificate per service of the rig into $(CERTS) (docs/security.md); existing
+# files are kept (ig certs --force replaces them).
+RIG ?= deploy/rigs/default.toml
+CERTS ?= certs
+certs: $(RUN_STAMP)
+	$(PY) -c 'import cryptography' 2>/dev/null || $(PY) -m pip install --no-compile -e '.[tls]'
+	$(VENV)/bin/ig certs --rig $(RIG) --out $(CERTS)
 
 # Lint (ruff), types (mypy) and the layer contracts of docs/architecture.md (import-linter).
 check: $(STAMP)

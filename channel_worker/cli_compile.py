@@ -236,12 +236,16 @@ def _cores() -> int:
     return os.cpu_count() or 1
 
 
+#: Most --jobs: as many as RenderOptions.threads allows (more cores than any machine has).
+MAX_JOBS = 1024
+
+
 def _jobs(text: str) -> int:
-    """argparse type: a whole number of processes >= 1."""
+    """argparse type: a whole number of processes in [1, MAX_JOBS]."""
     try:
         value = int(text)
     except ValueError:
         value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number >= 1")
+    if not 1 <= value <= MAX_JOBS:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number in [1, {MAX_JOBS}]")
     return value

@@ -6,6 +6,7 @@ import argparse
 import sys
 import time
 
+from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, field_of_view, pixels
 from services.rig.frame import ChannelSpec, Eyepoint
 from services.rig.options import add_render_arguments, from_arguments
 from services.rig.report import FrameReport
@@ -19,11 +20,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="eyepoint, world metres (x east, y north, z up)")
     parser.add_argument("--hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
                         help="aircraft heading, pitch, roll in degrees (default 0 0 0)")
-    parser.add_argument("--width", type=int, default=1024, help="pixels (default 1024)")
-    parser.add_argument("--height", type=int, default=768, help="pixels (default 768)")
-    parser.add_argument("--fov-h", type=float, default=60.0, help="horizontal field of view, degrees (default 60)")
-    parser.add_argument("--fov-v", type=float, default=None,
-                        help="vertical field of view, degrees (default: square pixels)")
+    parser.add_argument("--width", type=pixels, default=1024, help="pixels, 1..16384 (default 1024)")
+    parser.add_argument("--height", type=pixels, default=768, help="pixels, 1..16384 (default 768)")
+    parser.add_argument("--fov-h", type=field_of_view, default=60.0,
+                        help="horizontal field of view, degrees in (0, 178] (default 60)")
+    parser.add_argument("--fov-v", type=field_of_view, default=None,
+                        help="vertical field of view, degrees in (0, 178] (default: square pixels)")
     parser.add_argument("--channel-hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
                         help="channel yaw, pitch, roll offset from the aircraft nose, degrees")
     add_render_arguments(parser, renderer=True, with_range=True)
@@ -54,7 +56,12 @@ def run(args: argparse.Namespace) -> int:
         elapsed = time.perf_counter() - t0
     except (SceneError, ValueError) as exc:
         print(f"ig render: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        # Within every limit, a big frame with many samples can still exceed this machine.
+        print(f"ig render: error: out of memory rendering {args.width} x {args.height} pixels "
+              f"({options.sample_count} samples each); ask for fewer", file=sys.stderr)
+        return EXIT_FAILED
     attributes = {
         "eye_x": eyepoint.position[0], "eye_y": eyepoint.position[1], "eye_z": eyepoint.position[2],
         "heading_deg": eyepoint.heading_deg, "pitch_deg": eyepoint.pitch_deg, "roll_deg": eyepoint.roll_deg,
@@ -69,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         write_image(args.out, image.rgb, range_m=image.range_m, attributes=attributes)
     except OSError as exc:
         print(f"ig render: error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     if args.times:
         for stage, seconds in report.stage_seconds.items():
             print(f"{stage:>10} {seconds * 1000:9.2f} ms")

@@ -43,6 +43,10 @@ COMMANDS = {
                 "Render one tiny frame of the scene with the workers' options, so that the kernels are compiled "
                 "into the cache every worker of this machine loads them from (channel_worker/pipeline/"
                 "kernel_cache.py); ig demo runs it before the rig starts."),
+    "certs": ("services.rig.cli_certs", "make a test CA and one TLS certificate per service of a rig",
+              "Make a certificate authority and, for the host, the compositor and each channel of the rig, a "
+              "certificate (server and client) whose subjectAltName covers its rig address, into --out; print "
+              "the rig file's [tls] table (docs/security.md). Existing files are kept unless --force."),
     "terrain": ("channel_worker.cli_terrain", "build a voxel terrain database offline, or describe one",
                 "Build the voxel terrain database of the ground (levels averaged 2 x 2, pages of voxels, a "
                 "page table per level; docs/terrain-database.md) from an elevation source, or describe a "

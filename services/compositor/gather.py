@@ -194,6 +194,7 @@ class FrameGatherer:
         self._open: dict[int, _Open] = {}
         self._decided: dict[int, str] = {}  # frame number -> "complete" or incomplete cause
         self._floor = -1  # frames up to this number count as decided (DECIDED_MEMORY)
+        self._settled = -1  # the newest frame that had all its images
         self._bytes = 0  # pixels held by the open frames
         self.last_published = -1
         self.run_id = run_id
@@ -222,6 +223,9 @@ class FrameGatherer:
             self.last_published = max(self.last_published, frame.frame_number)
             entry = self._entry(frame.frame_number)
             if entry is None:
+                if frame.frame_number not in self._decided and frame.frame_number > self._floor:
+                    # Older than a frame that had all its images: it can never complete.
+                    self._decide(frame.frame_number, MISSING_CHANNEL, "seen after a newer frame had all its images")
                 return
             entry.published = frame
             ready = self._settle(frame.frame_number)
@@ -237,7 +241,11 @@ class FrameGatherer:
                 return False
             if frame_number <= self.last_published + LOOKAHEAD_FRAMES:
                 return True
-            return False if frame_number <= self.last_published + 4 * LOOKAHEAD_FRAMES else None
+            # Before its first frame of the run (a compositor restarted mid-run) any number may
+            # be about to be published.
+            if self.last_published < 0 or frame_number <= self.last_published + 4 * LOOKAHEAD_FRAMES:
+                return False
+            return None
 
     def submit(self, request: compositor_pb2.SubmitChannelImageRequest) -> None:
         """A channel delivered an image.
@@ -327,6 +335,7 @@ class FrameGatherer:
                 self._decide(number, MISSING_CHANNEL)
             self._decided.clear()
             self._floor = -1
+            self._settled = -1
             self.last_published = -1
         self.run_id = run_id
 
@@ -335,7 +344,9 @@ class FrameGatherer:
         entry = self._open.get(number)
         if entry is not None:
             return entry
-        if number in self._decided or number <= self._floor:
+        # Frames are rendered in order: an image of a frame older than one that had all its
+        # images comes too late to open it.
+        if number in self._decided or number <= self._floor or number < self._settled:
             return None
         entry = self._open[number] = _Open(since=self.monotonic())
         self.peak_pending_frames = max(self.peak_pending_frames, len(self._open))
@@ -402,6 +413,7 @@ class FrameGatherer:
         # never will.
         for older in sorted(n for n in self._open if n < number):
             self._decide(older, MISSING_CHANNEL)
+        self._settled = max(self._settled, number)
         absent = [c for c in self.channels if c not in entry.images]
         if absent:
             self._decide(number, MISSING_CHANNEL, f"missing {', '.join(absent)} (not subscribed to the host)")

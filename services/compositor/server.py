@@ -145,8 +145,8 @@ class Compositor:
 
     def _open_directory(self, run: _Run, name: str = "") -> None:
         """Give the run its directory (runs/<name or run id>) and recorder; point OUT/latest at it."""
-        # The run id names a directory: anything but a plain name (a path, say) is hashed.
-        name = name or (run.run_id if _RUN_NAME.fullmatch(run.run_id) else
+        # The run id names a directory: anything but a plain name (a path, ".", "..") is hashed.
+        name = name or (run.run_id if _RUN_NAME.fullmatch(run.run_id) and run.run_id.strip(".") else
                         "run-" + hashlib.sha1(run.run_id.encode()).hexdigest()[:12])
         directory = self.out_dir / "runs" / name
         k = 2

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .frame import MAX_CHANNEL_PIXELS
 from .grpc_util import Security
 from .rigfile import Rig, RigError, default_rig_path, load_rig
 
@@ -66,11 +67,23 @@ def non_negative(text: str) -> float:
 
 
 def pixels(text: str) -> int:
-    """argparse type: a whole number of pixels in [1, 16384]."""
+    """argparse type: a whole number of pixels in [1, 16384] (frame.MAX_CHANNEL_PIXELS)."""
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text} is not a whole number of pixels") from None
-    if not 1 <= value <= 16384:
-        raise argparse.ArgumentTypeError(f"{text} is not in [1, 16384] pixels")
+    if not 1 <= value <= MAX_CHANNEL_PIXELS:
+        raise argparse.ArgumentTypeError(f"{text} is not in [1, {MAX_CHANNEL_PIXELS}] pixels")
+    return value
+
+
+def field_of_view(text: str) -> float:
+    """argparse type: a field of view in degrees, in (0, 178]: a channel's frustum edges stay
+    within 89 degrees of its axis (frame.check_channel)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text} is not a number of degrees") from None
+    if not 0 < value <= 178:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"{text} is not in (0, 178] degrees")
     return value

@@ -17,6 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Pixels a channel may have on a side: the rig file's, `ig render`'s and render_frame's one
+#: limit (a 16384 x 16384 frame's colour alone is 3 GB of float32; docs/scene-format.md, Limits).
+MAX_CHANNEL_PIXELS = 16384
+
 
 @dataclass(frozen=True)
 class Eyepoint:
@@ -102,6 +106,11 @@ def check_channel(channel: ChannelSpec) -> None:
     """Raise ValueError naming the first field of the channel that cannot make a frustum."""
     if channel.width < 1 or channel.height < 1:
         raise ValueError(f"channel {channel.name!r}: size {channel.width} x {channel.height} is empty")
+    for name in ("width", "height"):
+        value = getattr(channel, name)
+        if value > MAX_CHANNEL_PIXELS:
+            raise ValueError(f"channel {channel.name!r}: {name} {value} is more than the "
+                             f"{MAX_CHANNEL_PIXELS} pixels a channel may have on a side")
     for name in ("left_deg", "right_deg", "bottom_deg", "top_deg", "yaw_deg", "pitch_deg", "roll_deg"):
         value = float(getattr(channel, name))
         if not math.isfinite(value):

@@ -8,7 +8,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from .frame import ChannelSpec
+from .frame import MAX_CHANNEL_PIXELS, ChannelSpec
 from .options import RenderOptions
 
 #: Channels a rig may have: the swap barrier and the compositor's bounds scale with it, and
@@ -221,8 +221,8 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         size = {}
         for key in ("width", "height"):
             v = ch[key]
-            if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= 16384:
-                raise fail(f"{where}.{key}", f"{v!r} is not a whole number of pixels in [1, 16384]")
+            if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= MAX_CHANNEL_PIXELS:
+                raise fail(f"{where}.{key}", f"{v!r} is not a whole number of pixels in [1, {MAX_CHANNEL_PIXELS}]")
             size[key] = v
         # The compositor stitches the channels side by side: one row, one height.
         if out and size["height"] != out[0].spec.height:

@@ -4,8 +4,12 @@ import argparse
 import json
 
 import numpy as np
+import pytest
 
 from channel_worker import cli_render
+from channel_worker.pipeline.render import render_frame
+from channel_worker.pipeline.scene.load import parse_scene
+from services.rig.frame import MAX_CHANNEL_PIXELS, ChannelSpec, Eyepoint, check_channel
 from services.rig.image_io import read_image
 
 
@@ -52,3 +56,56 @@ def test_render_bad_input_exits_2_with_a_named_error(tmp_path, capsys):
     good.write_text(json.dumps(SCENE))
     assert run([str(good), "--eye", "0", "nan", "2", "--out", str(tmp_path / "x.png")]) == 2
     assert "eyepoint.position[1]: nan" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("option,value,message", [
+    ("--width", "100000", "argument --width: 100000 is not in [1, 16384] pixels"),
+    ("--width", "16385", "argument --width: 16385 is not in [1, 16384] pixels"),
+    ("--height", "-5", "argument --height: -5 is not in [1, 16384] pixels"),
+    ("--height", "0", "argument --height: 0 is not in [1, 16384] pixels"),
+    ("--fov-h", "nan", "argument --fov-h: nan is not in (0, 178] degrees"),
+    ("--fov-h", "-10", "argument --fov-h: -10 is not in (0, 178] degrees"),
+    ("--fov-v", "1e9", "argument --fov-v: 1e9 is not in (0, 178] degrees"),
+])
+def test_render_size_errors_exit_2_in_one_line(option, value, message, capsys):
+    parser = argparse.ArgumentParser(prog="ig render")
+    cli_render.add_arguments(parser)
+    with pytest.raises(SystemExit) as exit_:
+        parser.parse_args(["--eye", "0", "0", "2", option, value, "--out", "x.png"])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert f"ig render: error: {message}" in err and "Traceback" not in err
+
+
+def test_render_options_out_of_range_exit_2_in_one_line(tmp_path, capsys):
+    scene = tmp_path / "s.json"
+    scene.write_text(json.dumps(SCENE))
+    for flag, value, message in (("--subarea", "100000", "subarea: expected an integer in 1..256, got 100000"),
+                                 ("--threads", "-1", "threads: expected an integer in 0..1024, got -1"),
+                                 ("--samples", "1000", "samples: 1000 has no pattern")):
+        assert run([str(scene), "--eye", "0", "0", "2", flag, value, "--out", str(tmp_path / "x.png")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"ig render: error: {message}") and err.count("\n") == 1
+
+
+def test_render_refuses_a_face_beyond_the_limit_naming_its_path(tmp_path, capsys):
+    n = 100_000
+    ring = [[5 * np.cos(2 * np.pi * i / n), 40.0, 5 + 5 * np.sin(2 * np.pi * i / n)] for i in range(n)]
+    doc = {**SCENE, "models": {"disc": {"vertices": ring,
+                                        "faces": [{"indices": list(range(n)), "colour": "#ff0000"}]}},
+           "instances": [{"model": "disc", "position": [0, 0, 0]}]}
+    scene = tmp_path / "disc.json"
+    scene.write_text(json.dumps(doc))
+    assert run([str(scene), "--eye", "0", "0", "2", "--out", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"ig render: error: {scene}: models.disc.faces[0].indices: 100000 vertices, more than the "
+                   f"64 a face may have (docs/scene-format.md, Limits)\n")
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_render_frame_refuses_a_channel_beyond_16384_pixels_a_side():
+    check_channel(ChannelSpec.symmetric("big", MAX_CHANNEL_PIXELS, 1, 60.0))
+    with pytest.raises(ValueError, match=r"channel 'big': width 16385 is more than the 16384 pixels"):
+        check_channel(ChannelSpec.symmetric("big", 16385, 1, 60.0))
+    with pytest.raises(ValueError, match=r"channel 'tall': height 100000 is more than the 16384 pixels"):
+        render_frame(parse_scene(SCENE), ChannelSpec.symmetric("tall", 8, 100_000, 10.0), Eyepoint.of(0, 0, 2, 0, 0, 0))

@@ -158,7 +158,8 @@ def test_jobs_must_be_a_whole_number_of_processes():
     cli_compile.add_arguments(parser)
     assert parser.parse_args(["--jobs", "3"]).jobs == 3
     assert parser.parse_args([]).jobs >= 1
-    for bad in ("0", "-1", "two"):
+    assert parser.parse_args(["--jobs", "1024"]).jobs == cli_compile.MAX_JOBS == 1024
+    for bad in ("0", "-1", "two", "1025", "999999"):
         with pytest.raises(SystemExit):
             parser.parse_args(["--jobs", bad])
 

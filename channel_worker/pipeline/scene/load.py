@@ -52,6 +52,37 @@ DEFAULT_HAZE_SCALE_HEIGHT_M = 1200.0
 #: Terrain databases a scene may name without a path ("database": "bundled:NAME").
 BUNDLED_TERRAIN = ("jacksboro",)
 
+# Limits of a scene (docs/scene-format.md "Limits"). They are checked on the decoded document's
+# list lengths before anything is built from it, so an oversized scene is refused in
+# milliseconds instead of after gigabytes of arrays, and never drawn wrong.
+
+#: Bytes of a scene file. Loading holds about twenty times the text (Python objects, then the
+#: arrays) and validates each face in Python: a 48 MB file of 650,000 quads peaked at 1.06 GB
+#: and took 270 s on the shared 2-core machine, so 16 MiB keeps a load near 350 MB and a
+#: minute or so. The bundled airfield is under 100 kB.
+MAX_SCENE_BYTES = 16 * 1024 * 1024
+
+#: Vertices of one face, as written. The rasterizer tests a sample against every edge of a
+#: polygon (an AND of half-planes, exact only while the polygon stays convex), and projection
+#: snaps vertices to 1/256 pixel. Snapped vertices closer than a few 1/256 pixel turn into
+#: axis-aligned steps whose half-planes cut through the polygon: a 100000-gon 90 pixels wide
+#: projects to 57000 edges one 1/256 pixel long, four of which exclude its centre, so it drew
+#: as a sliver or not at all. Measured over regular n-gons of every on-screen radius from 0.5
+#: to 512 pixels, a 64-gon's coverage is exact to the snapping (1/400 pixel); 256 vertices miss
+#: by up to 1/30 pixel and 1024 by half a pixel. Database polygons have a few vertices.
+MAX_FACE_VERTICES = 64
+
+#: Vertices of one model (its "vertices" list) and faces of one model (its "faces" list): a
+#: model is a building, a runway, a vehicle; bigger meshes are split into models.
+MAX_MODEL_VERTICES = 65_536
+MAX_MODEL_FACES = 65_536
+
+#: Faces a scene may draw, counted once per instance (a smooth model's faces as the triangles
+#: it is drawn as), and their vertices: every frame in view may carry all of them through the
+#: geometry stages and edge setup (about 200 bytes a face vertex), and feature ids are int32.
+MAX_SCENE_FACES = 1_000_000
+MAX_SCENE_FACE_VERTICES = 4_000_000
+
 
 def load_scene(path: str | Path) -> Database:
     """Read, validate and index a scene file.
@@ -60,14 +91,31 @@ def load_scene(path: str | Path) -> Database:
         SceneError: unreadable file, invalid JSON, or any value that breaks the format.
     """
     path = Path(path)
+    too_big = SceneError(f"{path}: more than {MAX_SCENE_BYTES} bytes, the most a scene file may have "
+                         f"(docs/scene-format.md, Limits)")
     try:
-        text = path.read_text(encoding="utf-8")
+        if path.is_file() and path.stat().st_size > MAX_SCENE_BYTES:
+            raise too_big
+        # At most one byte more than the limit is read, whatever the file claims to be (a
+        # pipe, a file still growing): the size is known before the text is held.
+        with path.open("rb") as file:
+            data = file.read(MAX_SCENE_BYTES + 1)
     except OSError as exc:
         raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
+    if len(data) > MAX_SCENE_BYTES:
+        raise too_big
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"{path}: byte {exc.start}: not UTF-8 text") from exc
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise SceneError(f"{path}: line {exc.lineno} column {exc.colno}: invalid JSON: {exc.msg}") from exc
+    except RecursionError:
+        raise SceneError(f"{path}: invalid JSON: nested too deeply") from None
+    except ValueError as exc:  # an integer of more than 4300 digits (sys.int_info)
+        raise SceneError(f"{path}: invalid JSON: {exc}") from exc
     return parse_scene(doc, source=str(path), base_dir=path.parent)
 
 
@@ -103,11 +151,15 @@ class _Parser:
     def number(self, value: Any, where: str, lo: float = -math.inf, hi: float = math.inf) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(where, f"expected a number, got {_show(value)}")
-        if not math.isfinite(value):
+        try:
+            number = float(value)
+        except OverflowError:  # a JSON integer beyond float64 (1e309 written out)
+            raise self.fail(where, f"{_show(value)} is not finite") from None
+        if not math.isfinite(number):
             raise self.fail(where, f"{value} is not finite")
-        if not lo <= value <= hi:
+        if not lo <= number <= hi:
             raise self.fail(where, f"{value} is outside [{lo}, {hi}]")
-        return float(value)
+        return number
 
     def vec3(self, value: Any, where: str) -> np.ndarray:
         if not isinstance(value, list) or len(value) != 3:
@@ -126,6 +178,7 @@ class _Parser:
                         "texture_codes"})
         if doc["format"] != FORMAT:
             raise self.fail("format", f"{_show(doc['format'])} is not {FORMAT!r}")
+        self.check_limits(doc)
         sky = self.obj(doc["sky"], "sky", {"colour"}, set())
         earth = self.obj(doc["earth"], "earth", {"colour"}, {"height_m"})
         lighting = self.obj(doc.get("lighting", {}), "lighting", set(),
@@ -186,6 +239,54 @@ class _Parser:
             textures=store,
             looks=self.codes.table(),
         )
+
+    def check_limits(self, doc: dict) -> None:
+        """Refuse a scene beyond the limits (MAX_FACE_VERTICES ...) from list lengths alone,
+        before any array is built; anything malformed is left to the full parse to name."""
+        models = doc["models"] if isinstance(doc["models"], dict) else {}
+        drawn: dict[str, tuple[int, int]] = {}  # model -> (faces, face vertices) it draws
+        for name, model in models.items():
+            if not isinstance(model, dict):
+                continue
+            where = f"models.{name}"
+            faces = model.get("faces")
+            faces = faces if isinstance(faces, list) else []
+            self.at_most(len(faces), MAX_MODEL_FACES, f"{where}.faces", "faces", "a model")
+            smooth = model.get("smooth", False) is not False
+            n_faces = n_verts = 0
+            for k, face in enumerate(faces):
+                idx = face.get("indices") if isinstance(face, dict) else None
+                if not isinstance(idx, list):
+                    continue
+                self.at_most(len(idx), MAX_FACE_VERTICES, f"{where}.faces[{k}].indices", "vertices", "a face")
+                # A smooth model draws each face as a fan of triangles (fan()).
+                triangles = max(len(idx) - 2, 1) if smooth else 1
+                n_faces += triangles
+                n_verts += 3 * triangles if smooth else len(idx)
+            vertices = model.get("vertices")
+            if isinstance(vertices, list):
+                self.at_most(len(vertices), MAX_MODEL_VERTICES, f"{where}.vertices", "vertices", "a model")
+            drawn[name] = (n_faces, n_verts)
+        instances = doc["instances"] if isinstance(doc["instances"], list) else []
+        total_faces = total_verts = 0
+        for j, inst in enumerate(instances):
+            name = inst.get("model") if isinstance(inst, dict) else None
+            if not isinstance(name, str) or name not in drawn:
+                continue
+            faces, verts = drawn[name]
+            total_faces += faces
+            total_verts += verts
+            # The instance where a total first passes its limit is the one named.
+            self.at_most(total_faces, MAX_SCENE_FACES, f"instances[{j}]", "faces", "a scene",
+                         " drawn over the instances so far")
+            self.at_most(total_verts, MAX_SCENE_FACE_VERTICES, f"instances[{j}]", "face vertices",
+                         "a scene", " drawn over the instances so far")
+
+    def at_most(self, count: int, limit: int, where: str, what: str, holder: str, context: str = "") -> None:
+        """Refuse count over limit: "WHERE: 100000 vertices, more than the 64 a face may have"."""
+        if count > limit:
+            raise self.fail(where, f"{count} {what}{context}, more than the {limit} {holder} may have "
+                                   f"(docs/scene-format.md, Limits)")
 
     def textures(self, doc: Any) -> tuple[TextureStore, dict[str, int]]:
         """The optional "textures" key: name -> an image file (relative to the scene), a
