@@ -273,12 +273,8 @@ class FramePublisher:
                         self.status.last_error = f"t={sim_time:.3f}s: {exc}"
                     log.error("eyepoint refused at t=%.3f s: %s", sim_time, exc)
                     continue
-                with self._lock:
-                    present = self._subscribed_channels()
-                frame = make_frame(number, sim_time, sample_time, eyepoint, self.status.run_id, self.clock(),
-                                   channels=[c for c in self.channels if c in present])
-                self._publish(frame)
-                self._wait_for_acks(number, stop)
+                frame = self._publish(number, sim_time, sample_time, eyepoint)
+                self._wait_for_acks(number, frame.channels, stop)
                 number += 1
         finally:
             with self._lock:
@@ -287,13 +283,20 @@ class FramePublisher:
             for sub in subs:
                 sub.close()
 
-    def _publish(self, frame: frame_pb2.Frame) -> None:
+    def _publish(self, number: int, sim_time: float, sample_time: float, eyepoint: Eyepoint) -> frame_pb2.Frame:
+        """Send frame number to every subscriber; the frame lists the channels subscribed at that
+        moment, the ones that receive it (one snapshot under the lock, so the list and the
+        receivers agree)."""
         with self._lock:
             subs = list(self._subs)
+            present = {s.channel_name for s in subs if s.channel_name}
+            frame = make_frame(number, sim_time, sample_time, eyepoint, self.status.run_id, self.clock(),
+                               channels=[c for c in self.channels if c in present])
             self.status.frames_published += 1
-            self._published = frame.frame_number
+            self._published = number
         for sub in subs:
             sub.put(frame)
+        return frame
 
     def _wait(self, predicate: Callable[[], bool], timeout_s: float, stop: threading.Event) -> bool:
         """Wait (lock held) until predicate() holds, stop is set or timeout_s passes.
@@ -344,16 +347,17 @@ class FramePublisher:
             with self._lock:
                 self._lock.wait(_STOP_POLL_S if self.starting is None else _HEALTH_POLL_S)
 
-    def _wait_for_acks(self, number: int, stop: threading.Event) -> None:
-        # Only channels with an open subscription can acknowledge; waiting for a worker that is
-        # down would stall every frame by the whole sync timeout. Re-evaluated on every wake-up,
-        # so a worker that dies during the wait is dropped from it.
+    def _wait_for_acks(self, number: int, sent_to: Sequence[str], stop: threading.Event) -> None:
+        # Only channels that received the frame and still have an open subscription can
+        # acknowledge it: waiting for a worker that is down, or that subscribed after the frame
+        # went out (it never got it), would stall the frame by the whole sync timeout.
+        # Re-evaluated on every wake-up, so a worker that dies during the wait is dropped from it.
         def waiting_for() -> list[str]:
             present = self._subscribed_channels()
-            return [c for c in self.channels if c in present and self._acks.get(c, -1) < number]
+            return [c for c in sent_to if c in present and self._acks.get(c, -1) < number]
 
         with self._lock:
-            absent = [c for c in self.channels if c not in self._subscribed_channels()]
+            absent = [c for c in self.channels if c not in sent_to]
             if not self._wait(lambda: not waiting_for(), self.sync_timeout_s, stop) and not stop.is_set():
                 for c in waiting_for():
                     self.status.ack_timeouts[c] += 1

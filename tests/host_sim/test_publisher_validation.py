@@ -187,3 +187,29 @@ def test_published_frames_list_the_subscribed_channels_in_rig_order():
     assert [f.frame_number for f in seen] == list(range(pub.tick_count))
     assert all(list(f.channels) == ["left", "right"] for f in seen)
     assert pub.snapshot().channel_absent == {"left": 0, "centre": pub.tick_count, "right": 0}
+
+
+def test_a_channel_that_subscribes_after_a_frame_went_out_is_not_waited_for_on_it():
+    # The swap barrier of frame n covers the channels that received n: a worker that comes back
+    # while the host waits for n never got it, and must not hold n up to the timeout.
+    pub = FramePublisher(source=source, channels=["a", "b"], rate_hz=1000.0, duration_s=0.001,
+                         sync_timeout_s=3600.0, start_timeout_s=0.0)
+    a = pub.subscribe("w-a", "a")
+    stop, runner = start(pub)
+    try:
+        first = a.get(60.0)
+        assert first.frame_number == 0 and list(first.channels) == ["a"]
+        b = pub.subscribe("w-b", "b")  # b returns while the host waits for frame 0
+        pub.ack("a", 0)
+        second = a.get(60.0)  # released by a's acknowledgement alone
+        assert second.frame_number == 1 and list(second.channels) == ["a", "b"]
+        assert b.get(60.0).frame_number == 1
+        pub.ack("a", 1)
+        pub.ack("b", 1)
+        runner.join(60.0)
+        status = pub.snapshot()
+        assert status.ack_timeouts == {"a": 0, "b": 0}
+        assert status.channel_absent == {"a": 0, "b": 1}
+    finally:
+        stop.set()
+        runner.join(60.0)
