@@ -7,6 +7,7 @@ OUT/latest pointing at the newest, and never touches a previous run's files.
 
 from __future__ import annotations
 
+import json
 import os
 import time
 
@@ -148,3 +149,16 @@ def test_first_run_files_are_unchanged_by_later_runs(restarts):
 def test_hosts_exit_cleanly(restarts):
     assert restarts["host_exit_sigterm"] == 0
     assert restarts["host_exit_last"] == 0
+
+
+def test_each_run_report_is_its_own_run(restarts):
+    # Never two runs merged: each report names its run, and the last (21 frames, ended by
+    # itself) counts exactly its own frames.
+    runs_dir = restarts["out"] / "runs"
+    reports = {rid: json.loads((runs_dir / rid / "report.json").read_text()) for rid in restarts["runs"]
+               if (runs_dir / rid / "report.json").exists()}
+    assert sorted(reports) == sorted(restarts["runs"])
+    assert {rid: r["run_id"] for rid, r in reports.items()} == {rid: rid for rid in reports}
+    last = reports[restarts["runs"][-1]]
+    assert last["frames_published"] == last["frames_complete"] == LAST_RUN_FRAMES, last
+    assert last["host"]["frames_published"] == LAST_RUN_FRAMES
