@@ -403,7 +403,10 @@ class DelayProxy:
             self._ready.set()
 
         self._loop.run_until_complete(start())
-        self._loop.run_forever()
+        try:
+            self._loop.run_forever()
+        finally:
+            self._loop.close()  # its self-pipe sockets too: an unclosed loop is a ResourceWarning
 
     async def _client(self, c_reader: asyncio.StreamReader, c_writer: asyncio.StreamWriter) -> None:
         try:
@@ -450,8 +453,11 @@ class DelayProxy:
         async def shut() -> None:
             if self._server is not None:
                 self._server.close()
-            for t in list(self._tasks):
+            tasks = list(self._tasks)
+            for t in tasks:
                 t.cancel()
+            # Let the cancelled connections run their finally clauses (closing both sockets).
+            await asyncio.gather(*tasks, return_exceptions=True)
 
         asyncio.run_coroutine_threadsafe(shut(), self._loop).result(timeout=10)
         self._loop.call_soon_threadsafe(self._loop.stop)
