@@ -489,7 +489,7 @@ def serve_worker(worker: ChannelWorker, address: str, stop: threading.Event, *,
     server = make_server(max_workers=4)
     add_service(server, WorkerStatusServicer(worker), worker_pb2.DESCRIPTOR.services_by_name["ChannelWorkerService"],
                 refused=worker.refuse)
-    health = add_health(server, [SERVICE], serving=worker.ready)
+    health = add_health(server, [SERVICE], serving=worker.ready, refused=worker.refuse)
     bind(server, address, security)
     server.start()
     log.info("worker %s: health and status on %s", worker.channel.name, address)

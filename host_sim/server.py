@@ -109,7 +109,7 @@ def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
     server = make_server()
     add_service(server, HostServicer(publisher, stop, eyepoints=eyepoints),
                 host_pb2.DESCRIPTOR.services_by_name["HostService"], refused=publisher.refuse)
-    health = add_health(server, [SERVICE])
+    health = add_health(server, [SERVICE], refused=publisher.refuse)
     port = bind(server, address, security)
     server.start()
     log.info("host listening on %s (run %s, %d frames at %.1f Hz)", address, publisher.status.run_id,

@@ -440,7 +440,7 @@ def serve(compositor: Compositor, address: str, host_address: str, stop: threadi
     server = make_server(max_receive_bytes=max_receive_bytes)
     add_service(server, CompositorServicer(compositor), compositor_pb2.DESCRIPTOR.services_by_name["CompositorService"],
                 refused=compositor.refuse)
-    health = add_health(server, [SERVICE])
+    health = add_health(server, [SERVICE], refused=compositor.refuse)
     bind(server, address, security)
     server.start()
     log.info("compositor listening on %s, writing to %s", address, compositor.out_dir)

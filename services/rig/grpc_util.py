@@ -240,12 +240,17 @@ def _checked_stream(behaviour, check):
     return handle
 
 
-def add_health(server: grpc.Server, services: Iterable[str], *,
-               serving: bool = True) -> health.HealthServicer:
+def add_health(server: grpc.Server, services: Iterable[str], *, serving: bool = True,
+               refused: Callable[[str, str], None] | None = None) -> health.HealthServicer:
     """Register the standard gRPC health service for "" and services, reporting SERVING, or
-    NOT_SERVING until set_serving (a worker still compiling its kernels)."""
+    NOT_SERVING until set_serving (a worker still compiling its kernels). With refused, it is
+    registered through add_service: malformed requests are refused with INVALID_ARGUMENT and
+    counted like the service's own."""
     servicer = health.HealthServicer()
-    health_pb2_grpc.add_HealthServicer_to_server(servicer, server)
+    if refused is None:
+        health_pb2_grpc.add_HealthServicer_to_server(servicer, server)
+    else:
+        add_service(server, servicer, health_pb2.DESCRIPTOR.services_by_name["Health"], refused=refused)
     set_serving(servicer, services, serving)
     return servicer
 
