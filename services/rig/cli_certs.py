@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from .cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, load_rig_or_report
+from .cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, load_rig_or_report, whole_number
 
 #: Validity when --days is not given (services/rig/certs.py DEFAULT_DAYS, repeated here so that
 #: building the parser does not import cryptography).
@@ -19,13 +19,7 @@ _MAX_DAYS = 3650
 
 def days(text: str) -> int:
     """argparse type: a validity, a whole number of days in [1, 3650]."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of days") from None
-    if not 1 <= value <= _MAX_DAYS:
-        raise argparse.ArgumentTypeError(f"{text} is not in [1, {_MAX_DAYS}] days")
-    return value
+    return whole_number(text, 1, _MAX_DAYS, "days")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -66,15 +66,24 @@ def non_negative(text: str) -> float:
     return value
 
 
-def pixels(text: str) -> int:
-    """argparse type: a whole number of pixels in [1, 16384] (frame.MAX_CHANNEL_PIXELS)."""
+def whole_number(text: str, lo: int, hi: int, unit: str) -> int:
+    """What an argparse type of whole numbers does: text as an int in [lo, hi] of unit.
+
+    Raises:
+        argparse.ArgumentTypeError: not a whole number, or out of range; the message says which.
+    """
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text} is not a whole number of pixels") from None
-    if not 1 <= value <= MAX_CHANNEL_PIXELS:
-        raise argparse.ArgumentTypeError(f"{text} is not in [1, {MAX_CHANNEL_PIXELS}] pixels")
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of {unit}") from None
+    if not lo <= value <= hi:
+        raise argparse.ArgumentTypeError(f"{text} is not in [{lo}, {hi}] {unit}")
     return value
+
+
+def pixels(text: str) -> int:
+    """argparse type: a whole number of pixels in [1, 16384] (frame.MAX_CHANNEL_PIXELS)."""
+    return whole_number(text, 1, MAX_CHANNEL_PIXELS, "pixels")
 
 
 def field_of_view(text: str) -> float:
