@@ -27,3 +27,13 @@ def wait_all(procs, timeout_s=300.0):
             return codes
         time.sleep(0.2)
     return {name: p.poll() for name, p in procs.items()}
+
+
+def kill_all(procs, logs):
+    """Whatever a test asserted: kill every process still running, close every log."""
+    for proc in procs.values():
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    for f in logs.values():
+        f.close()

@@ -21,7 +21,7 @@ from services.rig.image_io import read_image
 from services.rig.options import RenderOptions
 from services.rig.rigfile import default_rig_path, load_rig, rig_toml
 
-from .conftest import start, wait_all
+from .conftest import kill_all, start, wait_all
 
 pytestmark = pytest.mark.integration
 
@@ -67,12 +67,7 @@ def replay_run(tmp_path_factory):
             procs[name] = start([*args, "--rig", str(rig_path)], logs[name])
         codes = wait_all(procs)
     finally:
-        for proc in procs.values():
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-        for f in logs.values():
-            f.close()
+        kill_all(procs, logs)
     report_path = out / "latest" / "report.json"
     return {"rig": rig, "out": out, "log": log, "codes": codes,
             "logs": {n: (tmp / f"{n}.log").read_text() for n in argv},

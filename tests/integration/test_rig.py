@@ -33,7 +33,7 @@ from services.rig.image_io import read_image
 from services.rig.options import RenderOptions
 from services.rig.rigfile import default_rig_path, load_rig, rig_toml
 
-from .conftest import ROOT, start, wait_all
+from .conftest import ROOT, kill_all, start, wait_all
 
 pytestmark = pytest.mark.integration
 
@@ -91,12 +91,7 @@ def rig_run(tmp_path_factory):
         result["bad"] = throw_bad_input(rig, tmp, rig_path)
         result["exit"] = wait_all(procs)
     finally:
-        for proc in procs.values():
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-        for f in logs.values():
-            f.close()
+        kill_all(procs, logs)
     result["logs"] = {name: (tmp / f"{name}.log").read_text() for name in logs}
     report = out / "latest" / "report.json"
     result["report"] = json.loads(report.read_text()) if report.exists() else {}
@@ -240,12 +235,7 @@ def test_sigterm_stops_every_service_cleanly(tmp_path):
             proc.send_signal(signal.SIGTERM)
         codes = {n: p.wait(timeout=120) for n, p in procs.items()}
     finally:
-        for proc in procs.values():
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-        for f in logs.values():
-            f.close()
+        kill_all(procs, logs)
     assert codes == {"host": 0, "compositor": 0, "worker-left": 0}, \
         {n: (tmp_path / f"{n}.log").read_text() for n in procs}
     report = json.loads((out / "latest" / "report.json").read_text())

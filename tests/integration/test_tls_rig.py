@@ -25,7 +25,7 @@ from services.rig.cli_common import security_of
 from services.rig.grpc_util import Security, check_health
 from services.rig.rigfile import load_rig
 
-from .conftest import ROOT, start, wait_all
+from .conftest import ROOT, kill_all, start, wait_all
 
 pytestmark = pytest.mark.integration
 
@@ -127,12 +127,7 @@ def tls_run(tmp_path_factory):
         result["health"] = health
         result["exit"] = wait_all(procs)
     finally:
-        for proc in procs.values():
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-        for f in logs.values():
-            f.close()
+        kill_all(procs, logs)
     result["logs"] = {name: (tmp / f"{name}.log").read_text() for name in logs}
     report = out / "latest" / "report.json"  # the compositor's newest run
     result["report"] = json.loads(report.read_text()) if report.exists() else {}
