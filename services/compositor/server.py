@@ -179,7 +179,7 @@ class Compositor:
                     # The host restarted without ending its stream: finalise on a thread, so
                     # the new run's first frames are not held up by the old recorder.
                     ender = threading.Thread(target=self._end, args=(run, 0.0), daemon=True)
-                    self._enders.append(ender)
+                    self._enders = [t for t in self._enders if t.is_alive()] + [ender]
                     ender.start()
                 run = self._run
         run.gatherer.on_published(frame)
@@ -283,10 +283,11 @@ class Compositor:
             if run.directory is None:
                 # Stopped before the host published anything: the report still says so.
                 self._open_directory(run, time.strftime("no-frames-%Y%m%dT%H%M%SZ", time.gmtime()))
-        if not run.ended:
-            self._end(run, grace_s)
+        # Runs before this one end first, so that runs_before lists them in the order they ran.
         for ender in self._enders:
             ender.join()
+        if not run.ended:
+            self._end(run, grace_s)
         self.watchers.close()
         self.finished.set()
         doc = self._report(run)
