@@ -217,8 +217,12 @@ class FrameGatherer:
     def on_published(self, frame: frame_pb2.Frame) -> None:
         """The host published a frame (from the observer stream)."""
         with self._lock:
-            if frame.run_id != self.run_id:
-                self._new_run(frame.run_id)
+            if not self.run_id:
+                # Images may arrive before the first published frame names the run: they are its.
+                self.run_id = frame.run_id
+            elif frame.run_id != self.run_id:
+                raise ValueError(f"run_id: {frame.run_id!r} is not this gatherer's run {self.run_id!r} (the "
+                                 f"compositor starts a gatherer per run)")
             self.frames_published += 1
             self.last_published = max(self.last_published, frame.frame_number)
             entry = self._entry(frame.frame_number)
@@ -237,15 +241,24 @@ class FrameGatherer:
         False when it may once the compositor's copy of the frame has arrived (another run, or
         a frame just ahead); None when it never will (a frame far beyond the last published)."""
         with self._lock:
-            if run_id and self.run_id and run_id != self.run_id:
-                return False
-            if frame_number <= self.last_published + LOOKAHEAD_FRAMES:
+            refusal = self._admission(run_id, frame_number)
+            if refusal is None:
                 return True
             # Before its first frame of the run (a compositor restarted mid-run) any number may
             # be about to be published.
-            if self.last_published < 0 or frame_number <= self.last_published + 4 * LOOKAHEAD_FRAMES:
-                return False
-            return None
+            may_come = refusal.cause == OTHER_RUN or self.last_published < 0 or \
+                frame_number <= self.last_published + 4 * LOOKAHEAD_FRAMES
+            return False if may_come else None
+
+    def _admission(self, run_id: str, number: int) -> InvalidSubmission | None:
+        """Why an image of run_id's frame number is not taken now, or None (lock held)."""
+        if run_id and self.run_id and run_id != self.run_id:
+            return InvalidSubmission(OTHER_RUN, f"run_id: {run_id[:64]!r} is not the current run {self.run_id!r}")
+        if number > self.last_published + LOOKAHEAD_FRAMES:
+            last = self.last_published if self.last_published >= 0 else "none yet"
+            return InvalidSubmission(UNPUBLISHED, f"frame_number: {number} has not been published (the last is "
+                                                  f"{last})")
+        return None
 
     def submit(self, request: compositor_pb2.SubmitChannelImageRequest) -> None:
         """A channel delivered an image.
@@ -260,14 +273,10 @@ class FrameGatherer:
         try:
             image = self._validate(request, received)
             with self._lock:
-                if request.run_id and self.run_id and request.run_id != self.run_id:
-                    raise InvalidSubmission(OTHER_RUN, f"run_id: {request.run_id[:64]!r} is not the current run "
-                                                       f"{self.run_id!r}")
                 number = request.frame_number
-                if number > self.last_published + LOOKAHEAD_FRAMES:
-                    last = self.last_published if self.last_published >= 0 else "none yet"
-                    raise InvalidSubmission(UNPUBLISHED, f"frame_number: {number} has not been published "
-                                                         f"(the last is {last})")
+                refusal = self._admission(request.run_id, number)
+                if refusal is not None:
+                    raise refusal
                 entry = self._entry(number)
                 if entry is not None and image.channel in entry.images:
                     raise InvalidSubmission(DUPLICATE, f"channel_name: {image.channel!r} already delivered "
@@ -323,22 +332,6 @@ class FrameGatherer:
             return len(self._open)
 
     # --- decisions ----------------------------------------------------------------------------
-    def _new_run(self, run_id: str) -> None:
-        """The host's run changed (lock held).
-
-        Before the first published frame, images may already be waiting (a worker can be
-        quicker than the observer stream); they belong to this first run and stay. After a
-        run, frame numbers start again: what is still open is lost, and counted so.
-        """
-        if self.run_id:
-            for number in sorted(self._open):
-                self._decide(number, MISSING_CHANNEL)
-            self._decided.clear()
-            self._floor = -1
-            self._settled = -1
-            self.last_published = -1
-        self.run_id = run_id
-
     def _entry(self, number: int) -> _Open | None:
         """The open frame number, opened now if new; None if it was decided (lock held)."""
         entry = self._open.get(number)
@@ -358,8 +351,8 @@ class FrameGatherer:
         while self._open and (len(self._open) > self.max_pending_frames or self._bytes > self.max_pending_bytes):
             oldest = min(self._open)
             self.evicted += 1
-            self._decide(oldest, MISSING_CHANNEL, f"{len(self._open)} frames ({self._bytes / 2**20:.1f} MiB) were "
-                                                  f"open, more than {self.max_pending_frames} frames or "
+            self._decide(oldest, MISSING_CHANNEL, f"evicted: {len(self._open)} frames, {self._bytes / 2**20:.1f} MiB "
+                                                  f"open; the bounds are {self.max_pending_frames} frames, "
                                                   f"{self.max_pending_bytes / 2**20:.0f} MiB")
 
     def _validate(self, r: compositor_pb2.SubmitChannelImageRequest, received: float) -> ChannelImage:
@@ -416,7 +409,7 @@ class FrameGatherer:
         self._settled = max(self._settled, number)
         absent = [c for c in self.channels if c not in entry.images]
         if absent:
-            self._decide(number, MISSING_CHANNEL, f"missing {', '.join(absent)} (not subscribed to the host)")
+            self._decide(number, MISSING_CHANNEL, "not subscribed to the host")
             return []
         images = tuple(entry.images[c] for c in self.channels)
         self._decide(number, _COMPLETE)
@@ -442,10 +435,8 @@ class FrameGatherer:
                 self.missing_by_channel[c] += 1
             if not missing:
                 detail = detail or "host frame not seen"
-            elif detail.startswith("missing"):
-                pass
             else:
-                detail = f"missing {', '.join(missing)}" + (f"; {detail}" if detail else "")
+                detail = f"missing {', '.join(missing)}" + (f" ({detail})" if detail else "")
         self.last_incomplete = f"frame {number}: {outcome}: {detail}"
 
     def _emit(self, ready: list[CompleteFrame]) -> None:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .gather import ChannelImage, CompleteFrame, percentiles
+from .gather import MAX_SAMPLES, ChannelImage, CompleteFrame, percentiles
 
 #: The hops of a frame's chain, in order: (report key, what it spans). Their sum is the
 #: control-to-composite latency.
@@ -68,10 +68,6 @@ def chain(composite: Composite) -> dict[str, float] | None:
     t = critical_image(frame).timing
     return hop_seconds((frame.control_sample_time, frame.publish_time, t.frame_received, t.render_start,
                         t.render_end, t.compositor_receive, composite.time))
-
-
-#: Samples kept of each figure (18 minutes at 60 Hz, 6 hours at the demo's 3 Hz).
-MAX_SAMPLES = 65536
 
 
 class TimingStats:

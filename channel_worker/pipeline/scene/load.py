@@ -91,11 +91,7 @@ def load_scene(path: str | Path) -> Database:
         SceneError: unreadable file, invalid JSON, or any value that breaks the format.
     """
     path = Path(path)
-    too_big = SceneError(f"{path}: more than {MAX_SCENE_BYTES} bytes, the most a scene file may have "
-                         f"(docs/scene-format.md, Limits)")
     try:
-        if path.is_file() and path.stat().st_size > MAX_SCENE_BYTES:
-            raise too_big
         # At most one byte more than the limit is read, whatever the file claims to be (a
         # pipe, a file still growing): the size is known before the text is held.
         with path.open("rb") as file:
@@ -103,7 +99,8 @@ def load_scene(path: str | Path) -> Database:
     except OSError as exc:
         raise SceneError(f"{path}: cannot read: {exc.strerror or exc}") from exc
     if len(data) > MAX_SCENE_BYTES:
-        raise too_big
+        raise SceneError(f"{path}: more than {MAX_SCENE_BYTES} bytes, the most a scene file may have "
+                         f"(docs/scene-format.md, Limits)")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:

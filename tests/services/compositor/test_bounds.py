@@ -127,7 +127,7 @@ def test_max_pending_frames_evicts_the_oldest_open_frame():
     assert r["frames_pending"] == 2 and r["frames_evicted"] == 1
     assert r["peak_pending_frames"] == 3  # counted before the eviction it caused
     assert r["pending_bytes"] == 2 * IMAGE_BYTES
-    assert "frame 0: missing_channel: missing centre, right; 3 frames" in r["last_incomplete"]
+    assert "frame 0: missing_channel: missing centre, right (evicted: 3 frames" in r["last_incomplete"]
     g.submit(image(0, "centre"))  # evicted: late
     assert g.report()["late_images"] == 1
     g.finalize_all()
