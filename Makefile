@@ -57,6 +57,8 @@ bench: $(STAMP)
 	$(PY) bench/bench_fog.py
 	$(PY) bench/bench_texture.py
 	$(PY) bench/bench_frame.py
+	$(PY) bench/bench_cigi_queries.py
+	$(PY) bench/bench_cigi.py
 	$(VENV)/bin/ig latency --out bench/results/latency.json
 
 # Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.

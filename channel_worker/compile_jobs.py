@@ -195,6 +195,9 @@ def run_group(group: str, request: CompileRequest) -> None:
         bare = dataclasses.replace(database, terrain=None, haze=None, fog=None, clouds=None)
         image = render_frame(bare, request.channel, EYEPOINT, request.options)
         encode_rgb_f16(image.rgb)  # the worker's encoder for the compositor, compiled here too
+        from .query.service import warm_queries
+
+        warm_queries(database)  # and the CIGI height and line-of-sight queries
     elif group in ("terrain", "sky"):
         # No sub-area lists (bins None): the stage then wants per-sample depth everywhere, with
         # arguments of the same types as a frame's.
@@ -222,9 +225,10 @@ def _drawn(database: Database, options: RenderOptions) -> Database:
 
 def _check_frame(request: CompileRequest, database: Database,
                  on_progress: Callable[[Progress], None]) -> list[str]:
-    """The worker's warm-up (Worker.warm_up: a tiny frame, then its image encoded for the
-    compositor), in this process; returns the kernels it compiled."""
+    """The worker's warm-up (Worker.warm_up: a tiny frame, its image encoded for the
+    compositor, one query of each kind), in this process; returns the kernels it compiled."""
     from .pipeline.render import render_frame
+    from .query.service import warm_queries
     from .worker import encode_rgb_f16
 
     on_progress(Progress(CHECK, "group-start"))
@@ -232,6 +236,7 @@ def _check_frame(request: CompileRequest, database: Database,
     with kernel_events(CHECK, on_progress) as compiled:
         image = render_frame(database, request.channel, EYEPOINT, request.options)
         encode_rgb_f16(image.rgb)
+        warm_queries(database)
     on_progress(Progress(CHECK, "group-end", seconds=time.perf_counter() - t0, kernels=len(compiled)))
     return compiled
 

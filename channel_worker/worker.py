@@ -30,6 +30,7 @@ from ig.v1 import (
     worker_pb2,
     worker_pb2_grpc,
 )
+from services.rig.environment import apply_view, environment_from_proto
 from services.rig.frame import ChannelSpec, Eyepoint
 from services.rig.grpc_util import (
     MAX_TEXT_CHARS,
@@ -53,6 +54,8 @@ from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_p
 from .pipeline.kernel_cache import serialise_cache_writes
 from .pipeline.render import render_frame
 from .pipeline.scene.database import Database
+from .pipeline.scene.environment import EnvironmentCache
+from .query.service import add_query_service, warm_queries
 
 log = logging.getLogger("ig.worker")
 SERVICE = "ig.v1.ChannelWorkerService"
@@ -272,6 +275,8 @@ class ChannelWorker:
         self.host_stub = host_pb2_grpc.HostServiceStub(self._host)
         self.compositor_stub = SubmitStub(self._compositor)
         self._last_taken = -1
+        # The host's environment as this worker's database, built once per environment.
+        self._environments = EnvironmentCache()
 
     def warm_up(self) -> None:
         """Compile the numba kernels before the first real frame (several seconds the first time).
@@ -286,6 +291,7 @@ class ChannelWorker:
                            self.channel.bottom_deg, self.channel.top_deg)
         image = render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
         encode_rgb_f16(image.rgb)  # compiles (or loads) the encoder too
+        warm_queries(self.database)  # height and line-of-sight queries (CIGI) answered at once
         self.ready = True
 
     def status(self) -> worker_pb2.GetWorkerStatusResponse:
@@ -403,7 +409,8 @@ class ChannelWorker:
         t0 = time.perf_counter()
         try:
             report = FrameReport()
-            image = render_frame(self.database, self.channel, eyepoint_from_proto(frame.eyepoint),
+            database, channel = self._scene_of(frame)
+            image = render_frame(database, channel, eyepoint_from_proto(frame.eyepoint),
                                  self.options, report=report, out=self._rgb)
             stats = report.counters
             # The first frame of a run and every REPORT_EVERY-th after it go to the log at INFO, so a
@@ -451,6 +458,22 @@ class ChannelWorker:
             log.error("frame %d: %s", number, error)
         self._ack(number, frame.run_id, ok=ok, error=error)
 
+    def _scene_of(self, frame: frame_pb2.Frame) -> tuple[Database, ChannelSpec]:
+        """The database and channel a frame is rendered with: the external host's environment
+        (CIGI) applied to the scene, and its view of this channel (the last one listed) to the
+        rig file's. A view changes angles only, so the image keeps the channel's size.
+
+        Raises:
+            ValueError: a bad environment or view, named ("environment.visibility_m: ...").
+        """
+        database, channel = self.database, self.channel
+        if frame.HasField("environment"):
+            database = self._environments.get(self.database, environment_from_proto(frame.environment))
+        for view in frame.views:
+            if view.channel == self.channel.name:
+                channel = apply_view(self.channel, view)
+        return database, channel
+
     def _ack(self, number: int, run_id: str, *, ok: bool, error: str) -> None:
         # The host refuses error text beyond MAX_TEXT_CHARS: cut it here, with room for the note.
         request = host_pb2.AckFrameRequest(channel_name=self.channel.name, frame_number=number, ok=ok,
@@ -489,6 +512,9 @@ def serve_worker(worker: ChannelWorker, address: str, stop: threading.Event, *,
     server = make_server(max_workers=4)
     add_service(server, WorkerStatusServicer(worker), worker_pb2.DESCRIPTOR.services_by_name["ChannelWorkerService"],
                 refused=worker.refuse)
+    # Every worker holds the databases, so any can answer a CIGI host's height-of-terrain and
+    # line-of-sight queries (the rig file's cigi.query_channel says which one is asked).
+    add_query_service(server, worker.database, refused=worker.refuse, warm=False)
     health = add_health(server, [SERVICE], serving=worker.ready, refused=worker.refuse)
     bind(server, address, security)
     server.start()

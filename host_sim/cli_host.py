@@ -3,7 +3,8 @@
 The eyepoints come from one of:
 - the bundled scripted flight (default);
 - the flight model flown by cockpit controls (`--controls URL`, repeatable; docs/host-inputs.md);
-- a flight log (`--replay FILE`; docs/replay-formats.md).
+- a flight log (`--replay FILE`; docs/replay-formats.md);
+- an external simulation host speaking CIGI (`--cigi udp://HOST:PORT`; docs/cigi.md).
 """
 
 from __future__ import annotations
@@ -54,6 +55,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "serial:///dev/ttyUSB0?baud=115200, canlog:///path/log.asc; docs/host-inputs.md)")
     source.add_argument("--replay", metavar="FILE", default=None,
                         help="replay a flight log (.csv, .igc, .fdr, .ulg; docs/replay-formats.md)")
+    source.add_argument("--cigi", metavar="URL", nargs="?", const="", default=None,
+                        help="be a CIGI image generator: follow the simulation host whose datagrams arrive "
+                             "at udp://HOST:PORT (default: the rig file's cigi.listen, 127.0.0.1:8000 unless "
+                             "set); replies go to the host's address on --cigi-host-port (docs/cigi.md)")
+    parser.add_argument("--cigi-host-port", type=int, default=None, metavar="PORT",
+                        help="with --cigi: the host's UDP port for replies (default: the rig file's "
+                             "cigi.host_port, 8001 unless set)")
+    parser.add_argument("--cigi-mode", choices=["sync", "async"], default=None,
+                        help="with --cigi: synchronous (the IG is the clock) or asynchronous frames (default: "
+                             "the rig file's cigi.mode, sync unless set)")
     parser.add_argument("--replay-format", choices=["auto", "csv", "igc", "fdr", "ulog"], default="auto",
                         help="format of --replay (default: from the file name)")
     parser.add_argument("--speed", type=positive, default=1.0,
@@ -97,16 +108,24 @@ def run(args: argparse.Namespace) -> int:
     for needs, given, flags in (("--replay", args.replay is not None, (
             ("--replay-format", args.replay_format != "auto"), ("--speed", args.speed != 1.0),
             ("--start", args.start != 0.0), ("--loop", args.loop), ("--replay-origin", args.replay_origin))),
-            ("--controls", bool(args.controls), (("--stale-after", args.stale_after is not None),))):
+            ("--controls", bool(args.controls), (("--stale-after", args.stale_after is not None),)),
+            ("--cigi", args.cigi is not None, (("--cigi-host-port", args.cigi_host_port is not None),
+                                               ("--cigi-mode", args.cigi_mode is not None)))):
         misplaced = [flag for flag, used in flags if used]
         if misplaced and not given:
             error("host", f"{', '.join(misplaced)} only apply with {needs}")
             return EXIT_BAD_INPUT
     try:
-        eyepoints, source, natural_s = _eyepoint_source(args)
+        if args.cigi is not None:
+            eyepoints, source, natural_s = _cigi_source(args, rig, security)
+        else:
+            eyepoints, source, natural_s = _eyepoint_source(args)
     except ValueError as exc:
         error("host", exc)
         return EXIT_BAD_INPUT
+    except OSError as exc:
+        error("host", f"--cigi: cannot listen: {exc}")
+        return EXIT_FAILED
     duration = args.duration if args.duration is not None else (natural_s if math.isfinite(natural_s)
                                                                   else UNTIL_STOPPED_S)
     try:
@@ -166,6 +185,31 @@ def _eyepoint_source(args: argparse.Namespace):
     return None, scripted.eyepoint_at, scripted.duration_s
 
 
+def _cigi_source(args: argparse.Namespace, rig, security):
+    """(the CIGI endpoint, its frame_input, no natural end).
+
+    Raises:
+        ValueError: a bad --cigi URL or port (named).
+        OSError: the UDP port cannot be bound.
+    """
+    from host_sim.cigi.endpoint import CigiEndpoint, QueryClient, parse_udp_url
+    from host_sim.cigi.session import CigiSession
+    from services.rig.solar import sun_direction
+
+    spec = rig.cigi
+    listen = parse_udp_url(args.cigi or spec.listen)
+    host_port = spec.host_port if args.cigi_host_port is None else args.cigi_host_port
+    if not 1 <= host_port <= 65535:
+        raise ValueError(f"--cigi-host-port: {host_port} is not a port in [1, 65535]")
+    query = rig.channel(spec.query_channel) if spec.query_channel else rig.channels[0]
+    session = CigiSession(origin=spec.origin, channels={ch.view_id: ch.spec for ch in rig.channels},
+                          mode=args.cigi_mode or spec.mode, stale_after_s=spec.stale_after_s, solar=sun_direction,
+                          announce=bool(spec.host))
+    client = QueryClient(query.address, origin=spec.origin, timeout_s=spec.query_timeout_s, security=security)
+    endpoint = CigiEndpoint(session, listen, host_port=host_port, queries=client, host=spec.host)
+    return endpoint, endpoint.frame_input, math.inf
+
+
 def _report(args: argparse.Namespace) -> int:
     """`--report`: the replay report and its plot; 0 ok, 1 the plot cannot be written, 2 bad input."""
     from pathlib import Path
@@ -209,6 +253,12 @@ def _log_summary(eyepoints) -> None:
     elif isinstance(eyepoints, Replay):
         r = eyepoints.status()
         log.info("replay %s: ended at log time %.2f s after %d loop(s)", r.path, r.log_time_s, r.loops)
+    elif eyepoints is not None and hasattr(eyepoints, "session"):
+        s = eyepoints.session.status()
+        log.info("CIGI host %s (%s %s): %d messages, %d IG frames, refused %s, unused %s, queries %d "
+                 "(%d invalid, %d failed), restarts %d", s["host_address"] or "never heard", s["version"],
+                 s["byte_order"], s["messages"], s["ig_frames"], s["refused"] or "none", s["unused"] or "none",
+                 s["queries_answered"], s["queries_invalid"], s["queries_failed"], s["restarts"])
 
 
 def _worker_starting(rig, security):

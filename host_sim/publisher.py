@@ -17,6 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from ig.v1 import frame_pb2
+from services.rig.environment import Environment, environment_to_proto
 from services.rig.frame import Eyepoint, check_eyepoint
 from services.rig.grpc_util import clip
 from services.rig.mailbox import Mailbox
@@ -54,6 +55,31 @@ class OtherRun(ValueError):
     """An acknowledgement that names another run than the host's."""
 
 
+@dataclass(frozen=True)
+class FrameInput:
+    """What an external host gives a frame beyond the eyepoint (a source may return this
+    instead of a bare Eyepoint).
+
+    Attributes:
+        eyepoint: the frame's eyepoint; None publishes nothing this tick (no host yet, or the
+            host keeps the IG in reset): the channels hold their last picture.
+        host_frame_number: the external host's frame number the eyepoint came from.
+        environment: weather, visibility and sun set by the host (None: the scene's).
+        views: per channel, the view the host set (ig.v1.ChannelView messages).
+        new_run: the host started again (its frame counter went back): this frame starts a
+            new run, numbered from 0, so nothing of the previous run is overwritten.
+        sample_time: UNIX seconds when the host's data arrived (the frame's control sample
+            time, where latency is counted from); None: now.
+    """
+
+    eyepoint: Eyepoint | None
+    host_frame_number: int | None = None
+    environment: Environment | None = None
+    views: tuple[frame_pb2.ChannelView, ...] = ()
+    new_run: bool = False
+    sample_time: float | None = None
+
+
 class Subscription(Mailbox[frame_pb2.Frame]):
     """One subscriber's frame queue: bounded (QUEUE_DEPTH), drop-oldest, closed at the end of
     the run."""
@@ -81,6 +107,8 @@ class HostStatus:
     channel_absent: dict[str, int] = field(default_factory=dict)
     requests_refused: dict[str, int] = field(default_factory=dict)
     late_acks: dict[str, int] = field(default_factory=dict)
+    runs: int = 1
+    idle_ticks: int = 0
 
 
 class FramePublisher:
@@ -91,7 +119,8 @@ class FramePublisher:
     nothing and leaves no gap, so that a gap seen by a worker always means a skipped frame.
 
     Args:
-        source: eyepoint at a simulation time in seconds.
+        source: eyepoint at a simulation time in seconds, or a FrameInput (an external host's
+            frame: its frame number, environment and views, a new run, or nothing to publish).
         channels: names of the rig's channels; each must acknowledge every frame.
         rate_hz: publication rate, Hz.
         duration_s: simulated seconds to run.
@@ -108,7 +137,7 @@ class FramePublisher:
         run_id: identity of the run; a random one by default.
     """
 
-    def __init__(self, *, source: Callable[[float], Eyepoint], channels: Sequence[str],
+    def __init__(self, *, source: Callable[[float], Eyepoint | FrameInput], channels: Sequence[str],
                  rate_hz: float = 60.0, duration_s: float = 20.0, sync_timeout_s: float = 10.0,
                  observers: int = 0, start_timeout_s: float = 120.0,
                  clock: Callable[[], float] = time.time, run_id: str | None = None,
@@ -140,6 +169,9 @@ class FramePublisher:
         self.status.late_acks = dict.fromkeys(self.channels, 0)
         self._subs: list[Subscription] = []
         self._acks: dict[str, int] = {}
+        #: Runs this publisher has ended (an external host restarted): their late
+        #: acknowledgements are counted late, not refused.
+        self._ended_runs: set[str] = set()
         #: Number of the last frame published (-1 before the first) and of the frame the swap
         #: barrier waits for.
         self._published = -1
@@ -211,6 +243,10 @@ class FramePublisher:
             raise UnknownChannel(message)
         with self._lock:
             published = self._published
+        if run_id and run_id in self._ended_runs:
+            with self._lock:
+                self.status.late_acks[channel_name] += 1
+            return
         if run_id and run_id != self.status.run_id:
             message = f"run_id: {clip(run_id, 64)!r} is not the host's run {self.status.run_id!r}"
             self.refuse("other_run", message)
@@ -240,7 +276,8 @@ class FramePublisher:
             return HostStatus(s.run_id, s.frames_published, s.eyepoints_rejected, s.subscriptions_rejected,
                               dict(s.ack_timeouts), dict(s.ack_failures), drops,
                               [sub.subscriber for sub in self._subs], s.finished, s.last_error,
-                              dict(s.channel_absent), dict(s.requests_refused), dict(s.late_acks))
+                              dict(s.channel_absent), dict(s.requests_refused), dict(s.late_acks),
+                              s.runs, s.idle_ticks)
 
     def run(self, stop: threading.Event) -> None:
         """Publish the whole run (blocking), then close every subscription.
@@ -264,7 +301,18 @@ class FramePublisher:
                 next_tick = max(next_tick, time.monotonic()) + period
                 sim_time = tick / self.rate_hz
                 sample_time = self.clock()
-                eyepoint = self.source(sim_time)
+                given = self.source(sim_time)
+                extras = given if isinstance(given, FrameInput) else FrameInput(given)
+                if extras.new_run and number > 0:
+                    self._new_run()
+                    number = 0
+                eyepoint = extras.eyepoint
+                if extras.sample_time is not None:
+                    sample_time = extras.sample_time
+                if eyepoint is None:
+                    with self._lock:
+                        self.status.idle_ticks += 1
+                    continue
                 try:
                     check_eyepoint(eyepoint)
                 except ValueError as exc:
@@ -273,7 +321,7 @@ class FramePublisher:
                         self.status.last_error = f"t={sim_time:.3f}s: {exc}"
                     log.error("eyepoint refused at t=%.3f s: %s", sim_time, exc)
                     continue
-                frame = self._publish(number, sim_time, sample_time, eyepoint)
+                frame = self._publish(number, sim_time, sample_time, eyepoint, extras)
                 self._wait_for_acks(number, frame.channels, stop)
                 number += 1
         finally:
@@ -283,7 +331,18 @@ class FramePublisher:
             for sub in subs:
                 sub.close()
 
-    def _publish(self, number: int, sim_time: float, sample_time: float, eyepoint: Eyepoint) -> frame_pb2.Frame:
+    def _new_run(self) -> None:
+        """Start a new run: a new id, frame numbers from 0, the barrier forgotten."""
+        with self._lock:
+            self._ended_runs.add(self.status.run_id)
+            self.status.run_id = uuid.uuid4().hex[:12]
+            self.status.runs += 1
+            self._published = -1
+            self._acks = {}
+        log.info("new run %s: the external host started again", self.status.run_id)
+
+    def _publish(self, number: int, sim_time: float, sample_time: float, eyepoint: Eyepoint,
+                 extras: FrameInput | None = None) -> frame_pb2.Frame:
         """Send frame number to every subscriber; the frame lists the channels subscribed at that
         moment, the ones that receive it (one snapshot under the lock, so the list and the
         receivers agree)."""
@@ -292,6 +351,12 @@ class FramePublisher:
             present = {s.channel_name for s in subs if s.channel_name}
             frame = make_frame(number, sim_time, sample_time, eyepoint, self.status.run_id, self.clock(),
                                channels=[c for c in self.channels if c in present])
+            if extras is not None:
+                if extras.host_frame_number is not None:
+                    frame.host_frame_number = extras.host_frame_number
+                if extras.environment is not None:
+                    frame.environment.CopyFrom(environment_to_proto(extras.environment))
+                frame.views.extend(extras.views)
             self.status.frames_published += 1
             self._published = number
         for sub in subs:

@@ -68,7 +68,8 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
             ack_timeouts=s.ack_timeouts, ack_failures=s.ack_failures, queue_drops=s.queue_drops,
             subscriptions_rejected=s.subscriptions_rejected, subscribers=s.subscribers,
             finished=s.finished, last_error=s.last_error, channel_absent=s.channel_absent,
-            requests_refused=s.requests_refused, late_acks=s.late_acks, **eyepoint_source_status(self.eyepoints))
+            requests_refused=s.requests_refused, late_acks=s.late_acks, runs=s.runs,
+            **eyepoint_source_status(self.eyepoints))
 
 
 def eyepoint_source_status(eyepoints: Any) -> dict[str, Any]:
@@ -92,6 +93,12 @@ def eyepoint_source_status(eyepoints: Any) -> dict[str, Any]:
                     path=r.path, format=r.format, records=r.records, problems=r.problems,
                     attitude_estimated=r.attitude_estimated, log_duration_s=r.log_duration_s,
                     log_time_s=r.log_time_s, loops=r.loops)}
+    from .cigi.endpoint import CigiEndpoint
+
+    if isinstance(eyepoints, CigiEndpoint):
+        status = eyepoints.session.status()
+        status["listen"] = f"{eyepoints.listen[0]}:{eyepoints.listen[1]}"
+        return {"eyepoint_source": "cigi", "cigi": host_pb2.CigiStatus(**status)}
     return {"eyepoint_source": "bundled"}
 
 

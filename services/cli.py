@@ -31,6 +31,13 @@ COMMANDS = {
              "flown by CAN/serial controls, or a replayed flight log",
              "Serve HostService: publish frames at a fixed rate, waiting for every channel to acknowledge "
              "each frame (docs/frame-lock.md). Serves gRPC health; SIGTERM stops it cleanly."),
+    "status": ("host_sim.cli_status", "print a running host's status as JSON",
+               "Ask the rig's host for its status (GetHostStatus): frames published, acknowledgements, the "
+               "eyepoint source and, following a CIGI host, its version, messages, packets used and unused, "
+               "queries, staleness and restarts (docs/cigi.md)."),
+    "cigi-host": ("host_sim.cli_cigi_host", "play a scripted CIGI 3.3 host over UDP against an IG",
+                  "Send IG Control and ownship Entity Control once per Start of Frame (or on a clock with "
+                  "--async-rate), with HAT/HOT and LOS requests at scripted frames; report what the IG sent."),
     "worker": ("channel_worker.cli_worker", "render one channel of the rig",
                "Render one rig channel: compile the kernels, subscribe to the host, render the newest frame, "
                "submit it to the compositor, acknowledge it to the host. Serves gRPC health and "

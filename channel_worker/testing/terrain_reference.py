@@ -81,7 +81,7 @@ from numba import njit, prange
 
 from channel_worker.pipeline.contract import View
 from channel_worker.pipeline.geometry.view import screen_mapping
-from channel_worker.pipeline.scene.terrain.database import CORNERS, Pattern, TerrainDatabase
+from channel_worker.pipeline.scene.terrain.database import CORNERS, Pattern, TerrainDatabase, pattern_bands
 
 #: sRGB uint8 -> linear, IEC 61966-2-1 (the 256-entry table the database docs name).
 _SRGB = np.arange(256, dtype=np.float64) / 255.0
@@ -300,24 +300,7 @@ def _grid(terrain: TerrainDatabase) -> _Grid:
     if missing.size:
         py, px = divmod(int(missing[0]), int(terrain.pages_x[top]))
         raise ValueError(f"{terrain.source}: coarsest level {top} lacks page ({px}, {py})")
-    count = max([1] + [len(p.top_m) for p in terrain.patterns])
-    k = len(terrain.patterns)
-    band_top = np.zeros((max(k, 1), count))
-    band_rgb = np.zeros((max(k, 1), count, 3))
-    band_count = np.ones(max(k, 1), np.int64)
-    for n, pattern in enumerate(terrain.patterns):
-        tops = np.asarray(pattern.top_m, np.float64)
-        b = tops.shape[0]
-        if b < 1 or np.asarray(pattern.rgb).shape != (b, 3):
-            raise ValueError(f"pattern {pattern.name!r}: top_m {tops.shape} and rgb "
-                             f"{np.asarray(pattern.rgb).shape} do not describe B >= 1 bands")
-        band_top[n, :b], band_top[n, b:] = tops, tops[-1]
-        band_rgb[n, :b] = SRGB_TO_LINEAR[np.asarray(pattern.rgb, np.uint8)]
-        band_count[n] = b
-    z = np.asarray(terrain.z)
-    tallest = max([0.0] + [float(np.float32(p.top_m[-1])) for p in terrain.patterns])
-    # Computed from the data, not taken from terrain.z_max, so a wrong header cannot cut a hill.
-    z_top = float(z.max()) + tallest if z.size else -np.inf
+    bands = pattern_bands(terrain)
     return _Grid(
         spacing=float(terrain.spacing_m), nx=int(terrain.nx), ny=int(terrain.ny),
         levels=int(terrain.levels), page_size=int(terrain.page_size),
@@ -325,9 +308,9 @@ def _grid(terrain: TerrainDatabase) -> _Grid:
         pages_y=np.asarray(terrain.pages_y, np.int64),
         table_offset=np.asarray(terrain.table_offset, np.int64),
         page_table=np.asarray(terrain.page_table, np.int64),
-        z=z, rgb=np.asarray(terrain.rgb), pattern=np.asarray(terrain.pattern),
-        band_top=band_top, band_count=band_count, band_rgb=band_rgb, srgb=SRGB_TO_LINEAR,
-        z_top=z_top)
+        z=np.asarray(terrain.z), rgb=np.asarray(terrain.rgb), pattern=np.asarray(terrain.pattern),
+        band_top=bands.top_m, band_count=bands.count, band_rgb=bands.rgb, srgb=SRGB_TO_LINEAR,
+        z_top=bands.z_top)
 
 
 def _check_eye_outside(grid: _Grid, rel: np.ndarray, terrain: TerrainDatabase) -> None:

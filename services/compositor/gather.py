@@ -111,6 +111,7 @@ class CompleteFrame:
         images: one per rig channel, in display order, left to right.
         publish_time: UNIX seconds when the host published the frame.
         run_id: the host's run.
+        host_frame_number: the external simulation host's frame (CIGI), when there is one.
     """
 
     frame_number: int
@@ -120,6 +121,7 @@ class CompleteFrame:
     images: tuple[ChannelImage, ...]
     publish_time: float = 0.0
     run_id: str = ""
+    host_frame_number: int | None = None
 
 
 @dataclass
@@ -413,8 +415,9 @@ class FrameGatherer:
             return []
         images = tuple(entry.images[c] for c in self.channels)
         self._decide(number, _COMPLETE)
+        host_frame = published.host_frame_number if published.HasField("host_frame_number") else None
         return [CompleteFrame(number, published.sim_time_s, eyepoint, published.control_sample_time_unix_s, images,
-                              published.publish_time_unix_s, published.run_id)]
+                              published.publish_time_unix_s, published.run_id, host_frame)]
 
     def _decide(self, number: int, outcome: str, detail: str = "") -> None:
         entry = self._open.pop(number, None)

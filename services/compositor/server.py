@@ -370,6 +370,11 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
             run_id, frames = "", 0
             try:
                 for response in stream:
+                    if run_id and response.frame.run_id != run_id:
+                        # The host started a new run in the same stream (a CIGI host restarted):
+                        # the run that ends gets the host's counters as they stand, as at the
+                        # end of a stream.
+                        compositor.end_run(run_id, host_status=_host_status(stub))
                     compositor.on_published(response.frame)
                     run_id, frames = response.frame.run_id, frames + 1
             except grpc.RpcError as exc:
@@ -413,7 +418,13 @@ def _host_status(stub: host_pb2_grpc.HostServiceStub) -> dict | None:
         "replay": json_format.MessageToDict(s.replay, preserving_proto_field_name=True)
         if s.HasField("replay") else None,
         "flight_model": json_format.MessageToDict(s.flight_model, preserving_proto_field_name=True)
-        if s.HasField("flight_model") else None}
+        if s.HasField("flight_model") else None,
+        # The external CIGI host: messages and packets used, refused and unused, queries,
+        # staleness and restarts (docs/cigi.md).
+        "cigi": json_format.MessageToDict(s.cigi, preserving_proto_field_name=True,
+                                          always_print_fields_with_no_presence=True)
+        if s.HasField("cigi") else None,
+        "runs": s.runs}
 
 
 def _cancel_on_stop(stream: grpc.Future, stop: threading.Event, done: threading.Event) -> None:

@@ -100,16 +100,22 @@ def compose(frame: CompleteFrame, plan: BlendPlan | None = None, *,
 
 
 def frame_attributes(frame: CompleteFrame) -> dict[str, str | float | int]:
-    """Image attributes of a stitched frame: frame number, sim time, eyepoint, channel order.
+    """Image attributes of a stitched frame: frame number, sim time, eyepoint, channel order, and
+    the external host's frame number (CIGI) when there is one.
 
     Image files store float attributes as float32, centimetres at airfield distances; the
     `eyepoint` string ("x y z heading pitch roll", metres and degrees) keeps the exact float64s.
     """
     x, y, z, h, p, r = frame.eyepoint
-    return {"frame_number": frame.frame_number, "sim_time_s": frame.sim_time_s, "eye_x": x, "eye_y": y,
-            "eye_z": z, "heading_deg": h, "pitch_deg": p, "roll_deg": r,
-            "eyepoint": " ".join(repr(float(v)) for v in frame.eyepoint),
-            "channels": ",".join(img.channel for img in frame.images)}
+    attributes: dict[str, str | float | int] = {
+        "frame_number": frame.frame_number, "sim_time_s": frame.sim_time_s, "eye_x": x, "eye_y": y,
+        "eye_z": z, "heading_deg": h, "pitch_deg": p, "roll_deg": r,
+        "eyepoint": " ".join(repr(float(v)) for v in frame.eyepoint),
+        "channels": ",".join(img.channel for img in frame.images)}
+    if frame.host_frame_number is not None:
+        # A string: image files keep integer attributes as int32, and CIGI's are uint32.
+        attributes["host_frame_number"] = str(frame.host_frame_number)
+    return attributes
 
 
 @dataclass

@@ -14,6 +14,7 @@ import threading
 from collections import Counter, deque
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -82,6 +83,9 @@ class TimingStats:
         self.critical: Counter[str] = Counter()
         self.intervals: deque[float] = deque(maxlen=MAX_SAMPLES)
         self._last_time: float | None = None
+        # The external host's frames (CIGI): which reached the screen, and in what order.
+        self.host_frames: dict[str, Any] = {"composites": 0, "first": None, "last": None, "repeated": 0,
+                                            "skipped": 0}
 
     def add(self, composite: Composite) -> None:
         """Account for one composite (composites arrive in frame order)."""
@@ -91,10 +95,29 @@ class TimingStats:
             if self._last_time is not None:
                 self.intervals.append(composite.time - self._last_time)
             self._last_time = composite.time
+            self._count_host_frame(composite.frame.host_frame_number)
             if hops is not None:
                 for key, seconds in hops.items():
                     self.hops[key].append(seconds)
                 self.critical[critical_image(composite.frame).channel] += 1
+
+    def _count_host_frame(self, number: int | None) -> None:
+        """A composite of an external host's frame: repeated (the host did not keep pace and
+        its last eyepoint was shown again) or skipped frames of the host (counted mod 2^32)."""
+        if number is None:
+            return
+        h = self.host_frames
+        last = h["last"]
+        if last is not None:
+            step = (number - last) % (1 << 32)
+            if step == 0:
+                h["repeated"] += 1
+            elif step < 1 << 31:
+                h["skipped"] += step - 1
+        if h["first"] is None:
+            h["first"] = number
+        h["composites"] += 1
+        h["last"] = number
 
     def report(self) -> dict:
         """The report's timing keys (docs/frame-lock.md, docs/latency.md)."""
@@ -108,4 +131,5 @@ class TimingStats:
                 # The rate the rig sustained: the median interval, so that the first frames of a
                 # run (pages of terrain loading) do not count for the whole run.
                 "composite_rate_hz": round(1.0 / median, 3) if median > 0 else None,
+                **({"host_frames": dict(self.host_frames)} if self.host_frames["composites"] else {}),
             }

@@ -119,6 +119,7 @@ def summary(composite: Composite, watch: Watch) -> compositor_pb2.WatchComposite
     x, y, z, h, p, r = frame.eyepoint
     by_name = {img.channel: img for img in frame.images}
     return compositor_pb2.WatchCompositesResponse(
+        host_frame_number=frame.host_frame_number,
         frame_number=frame.frame_number, run_id=frame.run_id, sim_time_s=frame.sim_time_s,
         eyepoint=frame_pb2.Eyepoint(x=x, y=y, z=z, heading_deg=h, pitch_deg=p, roll_deg=r),
         control_sample_time_unix_s=frame.control_sample_time, publish_time_unix_s=frame.publish_time,

@@ -84,12 +84,45 @@ class TlsSpec:
 
 
 @dataclass(frozen=True)
+class CigiSpec:
+    """The rig as a CIGI image generator (the ``[cigi]`` table; docs/cigi.md).
+
+    Attributes:
+        listen: host:port of the UDP socket the host's datagrams arrive at.
+        host_port: UDP port on the host's machine the replies go to (its sender address).
+        origin: WGS-84 latitude, longitude (degrees) and height (metres) of the world's
+            (0, 0, 0): the database origin geodetic positions are converted around.
+        query_channel: the channel whose worker answers height-of-terrain and line-of-sight
+            queries (it holds the databases); "" takes the first channel.
+        mode: "sync" (the IG is the clock: one Start of Frame per frame, the host answers each)
+            or "async" (the host sends at its own rate; eyepoints extrapolated by timestamp).
+        stale_after_s: the host is reported stale after this long without a message.
+        query_timeout_s: deadline of a query RPC to the query channel's worker.
+        host: IP address of the host's machine, to send Start of Frame to before the host's
+            first message (hosts that wait for the IG to speak first, as the CIGI Class
+            Library's MiniHost does); "": wait for the host.
+    """
+
+    listen: str = "127.0.0.1:8000"
+    host_port: int = 8001
+    #: The bundled airfield's (channel_worker AIRFIELD_ORIGIN; a test keeps them equal).
+    origin: tuple[float, float, float] = (36.6089, -84.1708, 349.2)
+    query_channel: str = ""
+    mode: str = "sync"
+    stale_after_s: float = 1.0
+    query_timeout_s: float = 0.5
+    host: str = ""
+
+
+@dataclass(frozen=True)
 class RigChannel:
     """One channel of the rig: its view (a ChannelSpec, see channel_spec) and the address
     (host:port) of its worker's health and status server."""
 
     spec: ChannelSpec
     address: str
+    #: The CIGI view id View Control and View Definition address this channel by.
+    view_id: int = 0
 
     @property
     def name(self) -> str:
@@ -109,6 +142,7 @@ class Rig:
     sync: SyncSpec = field(default_factory=SyncSpec)
     blend: BlendSpec = field(default_factory=BlendSpec)
     tls: TlsSpec = field(default_factory=TlsSpec)
+    cigi: CigiSpec = field(default_factory=CigiSpec)
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -159,8 +193,8 @@ def load_rig(path: str | Path) -> Rig:
 
 
 _CHANNEL_KEYS = {"name", "address", "yaw_deg", "pitch_deg", "roll_deg", "left_deg", "right_deg",
-                 "bottom_deg", "top_deg", "width", "height"}
-_OPTIONAL = {"yaw_deg", "pitch_deg", "roll_deg"}
+                 "bottom_deg", "top_deg", "width", "height", "view_id"}
+_OPTIONAL = {"yaw_deg", "pitch_deg", "roll_deg", "view_id"}
 
 
 def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
@@ -169,7 +203,7 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         return RigError(f"{source}: {where}: {message}")
 
     for key in doc:
-        if key not in {"host", "compositor", "channels", "render", "sync", "blend", "tls"}:
+        if key not in {"host", "compositor", "channels", "render", "sync", "blend", "tls", "cigi"}:
             raise fail(key, "unknown key")
     try:
         render = RenderOptions.from_mapping(doc.get("render", {}), where="render")
@@ -229,7 +263,12 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
             raise fail(f"{where}.height", f"{size['height']} differs from channels[0].height "
                                           f"{out[0].spec.height} (channels are stitched side by side)")
         spec = channel_spec(name, width=size["width"], height=size["height"], **nums)
-        out.append(RigChannel(spec, _address(ch["address"], f"{where}.address", fail)))
+        view_id = ch.get("view_id", i)
+        if isinstance(view_id, bool) or not isinstance(view_id, int) or not 0 <= view_id <= 65535:
+            raise fail(f"{where}.view_id", f"{view_id!r} is not a whole number in [0, 65535]")
+        if view_id in {c.view_id for c in out}:
+            raise fail(f"{where}.view_id", f"{view_id} is used twice")
+        out.append(RigChannel(spec, _address(ch["address"], f"{where}.address", fail), view_id))
     # Two services on one address would fail to bind, or worse, answer for each other.
     seen = {addresses["host"]: "host.address"}
     for where, address in [("compositor.address", addresses["compositor"])] + \
@@ -244,7 +283,54 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         "overlap_deg": (float, 0.0, 45.0), "power": (float, 0.5, 16.0), "gamma": (float, 1.0, 4.0),
         "tolerance_deg": (float, 0.0, 10.0)}, fail))
     tls = _tls(doc.get("tls", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
-    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls)
+    cigi = _cigi(doc.get("cigi", {}), tuple(c.name for c in out), fail)
+    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi)
+
+
+def _cigi(table: Any, channels: tuple[str, ...], fail) -> CigiSpec:
+    if not isinstance(table, dict):
+        raise fail("cigi", f"{table!r} is not a table")
+    known = ("listen", "host_port", "origin", "query_channel", "mode", "stale_after_s", "query_timeout_s", "host")
+    for key in table:
+        if key not in known:
+            raise fail(f"cigi.{key}", f"unknown key (known: {', '.join(known)})")
+    out: dict[str, Any] = {}
+    if "listen" in table:
+        out["listen"] = _address(table["listen"], "cigi.listen", fail)
+    if "host_port" in table:
+        port = table["host_port"]
+        if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
+            raise fail("cigi.host_port", f"{port!r} is not a port in [1, 65535]")
+        out["host_port"] = port
+    if "origin" in table:
+        origin = table["origin"]
+        ok = (isinstance(origin, list) and len(origin) == 3
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in origin))
+        if not ok or not (abs(origin[0]) <= 90 and abs(origin[1]) <= 180 and abs(origin[2]) <= 20000):
+            raise fail("cigi.origin", f"{origin!r} is not [latitude within +-90, longitude within +-180, "
+                                      f"height within +-20000 m]")
+        out["origin"] = tuple(float(v) for v in origin)
+    if "query_channel" in table:
+        name = table["query_channel"]
+        if name not in channels:
+            raise fail("cigi.query_channel", f"{name!r} is not a channel of the rig ({', '.join(channels)})")
+        out["query_channel"] = name
+    if "host" in table:
+        host = table["host"]
+        if not isinstance(host, str) or not host or any(c.isspace() for c in host):
+            raise fail("cigi.host", f"{host!r} is not a host name or address")
+        out["host"] = host
+    if "mode" in table:
+        if table["mode"] not in ("sync", "async"):
+            raise fail("cigi.mode", f"{table['mode']!r} is not 'sync' or 'async'")
+        out["mode"] = table["mode"]
+    for key, lo, hi in (("stale_after_s", 0.01, 3600.0), ("query_timeout_s", 0.001, 60.0)):
+        if key in table:
+            v = table[key]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
+                raise fail(f"cigi.{key}", f"{v!r} is not a number in [{lo:g}, {hi:g}]")
+            out[key] = float(v)
+    return CigiSpec(**out)
 
 
 def _table(doc: dict[str, Any], name: str, keys: dict[str, tuple[type, float, float]], fail) -> dict[str, Any]:
@@ -317,7 +403,7 @@ def rig_toml(rig: Rig) -> str:
     if changed:
         lines.append("[render]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in changed.items()))
     for name, spec, default in (("sync", rig.sync, SyncSpec()), ("blend", rig.blend, BlendSpec()),
-                                ("tls", rig.tls, TlsSpec())):
+                                ("tls", rig.tls, TlsSpec()), ("cigi", rig.cigi, CigiSpec())):
         table = {k: v for k, v in asdict(spec).items() if getattr(default, k) != v}
         if table:
             lines.append(f"[{name}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in table.items()))
@@ -328,7 +414,7 @@ def rig_toml(rig: Rig) -> str:
             f"yaw_deg = {s.yaw_deg!r}\npitch_deg = {s.pitch_deg!r}\nroll_deg = {s.roll_deg!r}\n"
             f"left_deg = {s.left_deg!r}\nright_deg = {s.right_deg!r}\n"
             f"bottom_deg = {s.bottom_deg!r}\ntop_deg = {s.top_deg!r}\n"
-            f"width = {s.width}\nheight = {s.height}\n")
+            f"width = {s.width}\nheight = {s.height}\nview_id = {ch.view_id}\n")
     return "\n".join(lines)
 
 
@@ -337,6 +423,8 @@ def _toml_value(value: object) -> str:
         return "true" if value else "false"
     if isinstance(value, str):
         return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (tuple, list)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     return repr(value)
 
 

@@ -267,3 +267,30 @@ def test_a_silent_or_serving_but_unsubscribed_worker_is_given_up_after_the_start
     received, _ = run_with_channels(pub, ["a"])
     assert received["a"] == list(range(pub.tick_count))
     assert pub.snapshot().channel_absent["b"] == pub.tick_count
+
+
+def test_an_external_hosts_frames_carry_its_frame_number_environment_and_views_and_a_restart_starts_a_new_run():
+    from host_sim.publisher import FrameInput
+    from ig.v1 import frame_pb2
+    from services.rig.environment import Environment
+
+    env = Environment(visibility_m=5000.0)
+    view = frame_pb2.ChannelView(channel="a", yaw_deg=10.0)
+
+    def external(t):
+        k = round(t * 100)
+        if k < 2:
+            return FrameInput(None)  # no host yet: nothing published
+        return FrameInput(source(t), host_frame_number=1000 + k, environment=env, views=(view,), new_run=k == 6)
+
+    pub = FramePublisher(source=external, channels=["a"], rate_hz=100.0, duration_s=0.09, sync_timeout_s=1.0)
+    first_run = pub.status.run_id
+    _received, seen = run_with_channels(pub, ["a"])
+    assert pub.status.idle_ticks == 2 and pub.status.runs == 2
+    assert [f.frame_number for f in seen] == [0, 1, 2, 3, 0, 1, 2, 3]
+    assert [f.run_id == first_run for f in seen] == [True] * 4 + [False] * 4
+    assert [f.host_frame_number for f in seen] == list(range(1002, 1010))
+    assert seen[0].environment.visibility_m == 5000.0 and seen[0].views[0].yaw_deg == 10.0
+    # A late acknowledgement of the ended run is late, not refused.
+    pub.ack("a", 3, run_id=first_run)
+    assert pub.status.late_acks["a"] >= 1 and not pub.status.requests_refused

@@ -108,7 +108,7 @@ class RowProfile(_message.Message):
     def __init__(self, channel_name: _Optional[str] = ..., luminance: _Optional[_Iterable[float]] = ...) -> None: ...
 
 class WatchCompositesResponse(_message.Message):
-    __slots__ = ("frame_number", "run_id", "sim_time_s", "eyepoint", "control_sample_time_unix_s", "publish_time_unix_s", "composite_time_unix_s", "channels", "profiles", "watcher_drops")
+    __slots__ = ("frame_number", "run_id", "sim_time_s", "eyepoint", "control_sample_time_unix_s", "publish_time_unix_s", "composite_time_unix_s", "channels", "profiles", "watcher_drops", "host_frame_number")
     FRAME_NUMBER_FIELD_NUMBER: _ClassVar[int]
     RUN_ID_FIELD_NUMBER: _ClassVar[int]
     SIM_TIME_S_FIELD_NUMBER: _ClassVar[int]
@@ -119,6 +119,7 @@ class WatchCompositesResponse(_message.Message):
     CHANNELS_FIELD_NUMBER: _ClassVar[int]
     PROFILES_FIELD_NUMBER: _ClassVar[int]
     WATCHER_DROPS_FIELD_NUMBER: _ClassVar[int]
+    HOST_FRAME_NUMBER_FIELD_NUMBER: _ClassVar[int]
     frame_number: int
     run_id: str
     sim_time_s: float
@@ -129,4 +130,5 @@ class WatchCompositesResponse(_message.Message):
     channels: _containers.RepeatedCompositeFieldContainer[ChannelTiming]
     profiles: _containers.RepeatedCompositeFieldContainer[RowProfile]
     watcher_drops: int
-    def __init__(self, frame_number: _Optional[int] = ..., run_id: _Optional[str] = ..., sim_time_s: _Optional[float] = ..., eyepoint: _Optional[_Union[_frame_pb2.Eyepoint, _Mapping]] = ..., control_sample_time_unix_s: _Optional[float] = ..., publish_time_unix_s: _Optional[float] = ..., composite_time_unix_s: _Optional[float] = ..., channels: _Optional[_Iterable[_Union[ChannelTiming, _Mapping]]] = ..., profiles: _Optional[_Iterable[_Union[RowProfile, _Mapping]]] = ..., watcher_drops: _Optional[int] = ...) -> None: ...
+    host_frame_number: int
+    def __init__(self, frame_number: _Optional[int] = ..., run_id: _Optional[str] = ..., sim_time_s: _Optional[float] = ..., eyepoint: _Optional[_Union[_frame_pb2.Eyepoint, _Mapping]] = ..., control_sample_time_unix_s: _Optional[float] = ..., publish_time_unix_s: _Optional[float] = ..., composite_time_unix_s: _Optional[float] = ..., channels: _Optional[_Iterable[_Union[ChannelTiming, _Mapping]]] = ..., profiles: _Optional[_Iterable[_Union[RowProfile, _Mapping]]] = ..., watcher_drops: _Optional[int] = ..., host_frame_number: _Optional[int] = ...) -> None: ...

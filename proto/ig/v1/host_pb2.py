@@ -25,7 +25,7 @@ _sym_db = _symbol_database.Default()
 from ig.v1 import frame_pb2 as ig_dot_v1_dot_frame__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x10ig/v1/host.proto\x12\x05ig.v1\x1a\x11ig/v1/frame.proto\"B\n\x16SubscribeFramesRequest\x12\x12\n\nsubscriber\x18\x01 \x01(\t\x12\x14\n\x0c\x63hannel_name\x18\x02 \x01(\t\"6\n\x17SubscribeFramesResponse\x12\x1b\n\x05\x66rame\x18\x01 \x01(\x0b\x32\x0c.ig.v1.Frame\"h\n\x0f\x41\x63kFrameRequest\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x14\n\x0c\x66rame_number\x18\x02 \x01(\x04\x12\n\n\x02ok\x18\x03 \x01(\x08\x12\r\n\x05\x65rror\x18\x04 \x01(\t\x12\x0e\n\x06run_id\x18\x05 \x01(\t\"\x12\n\x10\x41\x63kFrameResponse\"\x16\n\x14GetHostStatusRequest\"\xac\x08\n\x15GetHostStatusResponse\x12\x0e\n\x06run_id\x18\x01 \x01(\t\x12\x18\n\x10\x66rames_published\x18\x02 \x01(\x04\x12\x1a\n\x12\x65yepoints_rejected\x18\x03 \x01(\x04\x12\x43\n\x0c\x61\x63k_timeouts\x18\x04 \x03(\x0b\x32-.ig.v1.GetHostStatusResponse.AckTimeoutsEntry\x12\x43\n\x0c\x61\x63k_failures\x18\x05 \x03(\x0b\x32-.ig.v1.GetHostStatusResponse.AckFailuresEntry\x12\x41\n\x0bqueue_drops\x18\x06 \x03(\x0b\x32,.ig.v1.GetHostStatusResponse.QueueDropsEntry\x12\x1e\n\x16subscriptions_rejected\x18\x07 \x01(\x04\x12\x13\n\x0bsubscribers\x18\x08 \x03(\t\x12\x10\n\x08\x66inished\x18\t \x01(\x08\x12\x12\n\nlast_error\x18\n \x01(\t\x12G\n\x0e\x63hannel_absent\x18\x0b \x03(\x0b\x32/.ig.v1.GetHostStatusResponse.ChannelAbsentEntry\x12\x17\n\x0f\x65yepoint_source\x18\x0c \x01(\t\x12(\n\x06inputs\x18\r \x03(\x0b\x32\x18.ig.v1.InputSourceStatus\x12#\n\x06replay\x18\x0e \x01(\x0b\x32\x13.ig.v1.ReplayStatus\x12.\n\x0c\x66light_model\x18\x0f \x01(\x0b\x32\x18.ig.v1.FlightModelStatus\x12K\n\x10requests_refused\x18\x10 \x03(\x0b\x32\x31.ig.v1.GetHostStatusResponse.RequestsRefusedEntry\x12=\n\tlate_acks\x18\x11 \x03(\x0b\x32*.ig.v1.GetHostStatusResponse.LateAcksEntry\x1a\x32\n\x10\x41\x63kTimeoutsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x32\n\x10\x41\x63kFailuresEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x31\n\x0fQueueDropsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x34\n\x12\x43hannelAbsentEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x36\n\x14RequestsRefusedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a/\n\rLateAcksEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\"\xaf\x03\n\x11InputSourceStatus\x12\x0c\n\x04name\x18\x01 \x01(\t\x12\x10\n\x08\x61\x63\x63\x65pted\x18\x02 \x01(\x04\x12\x38\n\x08rejected\x18\x03 \x03(\x0b\x32&.ig.v1.InputSourceStatus.RejectedEntry\x12\r\n\x05stale\x18\x04 \x01(\x08\x12\x18\n\x10last_input_age_s\x18\x05 \x01(\x01\x12\x16\n\x0elast_rejection\x18\x06 \x01(\t\x12\x38\n\x08\x63ounters\x18\x07 \x03(\x0b\x32&.ig.v1.InputSourceStatus.CountersEntry\x12\x34\n\x06values\x18\x08 \x03(\x0b\x32$.ig.v1.InputSourceStatus.ValuesEntry\x1a/\n\rRejectedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a/\n\rCountersEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a-\n\x0bValuesEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01\"\xfa\x01\n\x0cReplayStatus\x12\x0c\n\x04path\x18\x01 \x01(\t\x12\x0e\n\x06\x66ormat\x18\x02 \x01(\t\x12\x0f\n\x07records\x18\x03 \x01(\x04\x12\x33\n\x08problems\x18\x04 \x03(\x0b\x32!.ig.v1.ReplayStatus.ProblemsEntry\x12\x1a\n\x12\x61ttitude_estimated\x18\x05 \x01(\x08\x12\x16\n\x0elog_duration_s\x18\x06 \x01(\x01\x12\x12\n\nlog_time_s\x18\x07 \x01(\x01\x12\r\n\x05loops\x18\x08 \x01(\x04\x1a/\n\rProblemsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\"H\n\x11\x46lightModelStatus\x12\r\n\x05steps\x18\x01 \x01(\x04\x12\x11\n\tspeed_mps\x18\x02 \x01(\x01\x12\x11\n\ton_ground\x18\x03 \x01(\x08\x32\xea\x01\n\x0bHostService\x12R\n\x0fSubscribeFrames\x12\x1d.ig.v1.SubscribeFramesRequest\x1a\x1e.ig.v1.SubscribeFramesResponse0\x01\x12;\n\x08\x41\x63kFrame\x12\x16.ig.v1.AckFrameRequest\x1a\x17.ig.v1.AckFrameResponse\x12J\n\rGetHostStatus\x12\x1b.ig.v1.GetHostStatusRequest\x1a\x1c.ig.v1.GetHostStatusResponseb\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x10ig/v1/host.proto\x12\x05ig.v1\x1a\x11ig/v1/frame.proto\"B\n\x16SubscribeFramesRequest\x12\x12\n\nsubscriber\x18\x01 \x01(\t\x12\x14\n\x0c\x63hannel_name\x18\x02 \x01(\t\"6\n\x17SubscribeFramesResponse\x12\x1b\n\x05\x66rame\x18\x01 \x01(\x0b\x32\x0c.ig.v1.Frame\"h\n\x0f\x41\x63kFrameRequest\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x14\n\x0c\x66rame_number\x18\x02 \x01(\x04\x12\n\n\x02ok\x18\x03 \x01(\x08\x12\r\n\x05\x65rror\x18\x04 \x01(\t\x12\x0e\n\x06run_id\x18\x05 \x01(\t\"\x12\n\x10\x41\x63kFrameResponse\"\x16\n\x14GetHostStatusRequest\"\xdb\x08\n\x15GetHostStatusResponse\x12\x0e\n\x06run_id\x18\x01 \x01(\t\x12\x18\n\x10\x66rames_published\x18\x02 \x01(\x04\x12\x1a\n\x12\x65yepoints_rejected\x18\x03 \x01(\x04\x12\x43\n\x0c\x61\x63k_timeouts\x18\x04 \x03(\x0b\x32-.ig.v1.GetHostStatusResponse.AckTimeoutsEntry\x12\x43\n\x0c\x61\x63k_failures\x18\x05 \x03(\x0b\x32-.ig.v1.GetHostStatusResponse.AckFailuresEntry\x12\x41\n\x0bqueue_drops\x18\x06 \x03(\x0b\x32,.ig.v1.GetHostStatusResponse.QueueDropsEntry\x12\x1e\n\x16subscriptions_rejected\x18\x07 \x01(\x04\x12\x13\n\x0bsubscribers\x18\x08 \x03(\t\x12\x10\n\x08\x66inished\x18\t \x01(\x08\x12\x12\n\nlast_error\x18\n \x01(\t\x12G\n\x0e\x63hannel_absent\x18\x0b \x03(\x0b\x32/.ig.v1.GetHostStatusResponse.ChannelAbsentEntry\x12\x17\n\x0f\x65yepoint_source\x18\x0c \x01(\t\x12(\n\x06inputs\x18\r \x03(\x0b\x32\x18.ig.v1.InputSourceStatus\x12#\n\x06replay\x18\x0e \x01(\x0b\x32\x13.ig.v1.ReplayStatus\x12.\n\x0c\x66light_model\x18\x0f \x01(\x0b\x32\x18.ig.v1.FlightModelStatus\x12K\n\x10requests_refused\x18\x10 \x03(\x0b\x32\x31.ig.v1.GetHostStatusResponse.RequestsRefusedEntry\x12=\n\tlate_acks\x18\x11 \x03(\x0b\x32*.ig.v1.GetHostStatusResponse.LateAcksEntry\x12\x1f\n\x04\x63igi\x18\x12 \x01(\x0b\x32\x11.ig.v1.CigiStatus\x12\x0c\n\x04runs\x18\x13 \x01(\x04\x1a\x32\n\x10\x41\x63kTimeoutsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x32\n\x10\x41\x63kFailuresEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x31\n\x0fQueueDropsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x34\n\x12\x43hannelAbsentEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a\x36\n\x14RequestsRefusedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a/\n\rLateAcksEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\"\xf9\x05\n\nCigiStatus\x12\x0e\n\x06listen\x18\x01 \x01(\t\x12\x14\n\x0chost_address\x18\x02 \x01(\t\x12\x0f\n\x07version\x18\x03 \x01(\t\x12\x12\n\nbyte_order\x18\x04 \x01(\t\x12\x0c\n\x04mode\x18\x05 \x01(\t\x12\x0f\n\x07ig_mode\x18\x06 \x01(\t\x12\x10\n\x08messages\x18\x07 \x01(\x04\x12/\n\x07refused\x18\x08 \x03(\x0b\x32\x1e.ig.v1.CigiStatus.RefusedEntry\x12/\n\x07packets\x18\t \x03(\x0b\x32\x1e.ig.v1.CigiStatus.PacketsEntry\x12-\n\x06unused\x18\n \x03(\x0b\x32\x1d.ig.v1.CigiStatus.UnusedEntry\x12\x0f\n\x07skipped\x18\x0b \x01(\x04\x12\x17\n\x0flast_host_frame\x18\x0c \x01(\r\x12\x11\n\tig_frames\x18\r \x01(\x04\x12\r\n\x05stale\x18\x0e \x01(\x08\x12\x14\n\x0cstale_events\x18\x0f \x01(\x04\x12\x10\n\x08restarts\x18\x10 \x01(\x04\x12\x10\n\x08\x65ntities\x18\x11 \x01(\x04\x12\x18\n\x10queries_answered\x18\x12 \x01(\x04\x12\x17\n\x0fqueries_invalid\x18\x13 \x01(\x04\x12\x16\n\x0equeries_failed\x18\x14 \x01(\x04\x12\x19\n\x11periodic_requests\x18\x15 \x01(\x04\x12\x18\n\x10messages_dropped\x18\x16 \x01(\x04\x12\x1a\n\x12responses_deferred\x18\x17 \x01(\x04\x12\x12\n\nlast_error\x18\x18 \x01(\t\x12\x19\n\x11responses_dropped\x18\x19 \x01(\x04\x1a.\n\x0cRefusedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a.\n\x0cPacketsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a-\n\x0bUnusedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\"\xaf\x03\n\x11InputSourceStatus\x12\x0c\n\x04name\x18\x01 \x01(\t\x12\x10\n\x08\x61\x63\x63\x65pted\x18\x02 \x01(\x04\x12\x38\n\x08rejected\x18\x03 \x03(\x0b\x32&.ig.v1.InputSourceStatus.RejectedEntry\x12\r\n\x05stale\x18\x04 \x01(\x08\x12\x18\n\x10last_input_age_s\x18\x05 \x01(\x01\x12\x16\n\x0elast_rejection\x18\x06 \x01(\t\x12\x38\n\x08\x63ounters\x18\x07 \x03(\x0b\x32&.ig.v1.InputSourceStatus.CountersEntry\x12\x34\n\x06values\x18\x08 \x03(\x0b\x32$.ig.v1.InputSourceStatus.ValuesEntry\x1a/\n\rRejectedEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a/\n\rCountersEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\x1a-\n\x0bValuesEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x01:\x02\x38\x01\"\xfa\x01\n\x0cReplayStatus\x12\x0c\n\x04path\x18\x01 \x01(\t\x12\x0e\n\x06\x66ormat\x18\x02 \x01(\t\x12\x0f\n\x07records\x18\x03 \x01(\x04\x12\x33\n\x08problems\x18\x04 \x03(\x0b\x32!.ig.v1.ReplayStatus.ProblemsEntry\x12\x1a\n\x12\x61ttitude_estimated\x18\x05 \x01(\x08\x12\x16\n\x0elog_duration_s\x18\x06 \x01(\x01\x12\x12\n\nlog_time_s\x18\x07 \x01(\x01\x12\r\n\x05loops\x18\x08 \x01(\x04\x1a/\n\rProblemsEntry\x12\x0b\n\x03key\x18\x01 \x01(\t\x12\r\n\x05value\x18\x02 \x01(\x04:\x02\x38\x01\"H\n\x11\x46lightModelStatus\x12\r\n\x05steps\x18\x01 \x01(\x04\x12\x11\n\tspeed_mps\x18\x02 \x01(\x01\x12\x11\n\ton_ground\x18\x03 \x01(\x08\x32\xea\x01\n\x0bHostService\x12R\n\x0fSubscribeFrames\x12\x1d.ig.v1.SubscribeFramesRequest\x1a\x1e.ig.v1.SubscribeFramesResponse0\x01\x12;\n\x08\x41\x63kFrame\x12\x16.ig.v1.AckFrameRequest\x1a\x17.ig.v1.AckFrameResponse\x12J\n\rGetHostStatus\x12\x1b.ig.v1.GetHostStatusRequest\x1a\x1c.ig.v1.GetHostStatusResponseb\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
@@ -44,6 +44,12 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_GETHOSTSTATUSRESPONSE_REQUESTSREFUSEDENTRY']._serialized_options = b'8\001'
   _globals['_GETHOSTSTATUSRESPONSE_LATEACKSENTRY']._loaded_options = None
   _globals['_GETHOSTSTATUSRESPONSE_LATEACKSENTRY']._serialized_options = b'8\001'
+  _globals['_CIGISTATUS_REFUSEDENTRY']._loaded_options = None
+  _globals['_CIGISTATUS_REFUSEDENTRY']._serialized_options = b'8\001'
+  _globals['_CIGISTATUS_PACKETSENTRY']._loaded_options = None
+  _globals['_CIGISTATUS_PACKETSENTRY']._serialized_options = b'8\001'
+  _globals['_CIGISTATUS_UNUSEDENTRY']._loaded_options = None
+  _globals['_CIGISTATUS_UNUSEDENTRY']._serialized_options = b'8\001'
   _globals['_INPUTSOURCESTATUS_REJECTEDENTRY']._loaded_options = None
   _globals['_INPUTSOURCESTATUS_REJECTEDENTRY']._serialized_options = b'8\001'
   _globals['_INPUTSOURCESTATUS_COUNTERSENTRY']._loaded_options = None
@@ -63,33 +69,41 @@ if not _descriptor._USE_C_DESCRIPTORS:
   _globals['_GETHOSTSTATUSREQUEST']._serialized_start=296
   _globals['_GETHOSTSTATUSREQUEST']._serialized_end=318
   _globals['_GETHOSTSTATUSRESPONSE']._serialized_start=321
-  _globals['_GETHOSTSTATUSRESPONSE']._serialized_end=1389
-  _globals['_GETHOSTSTATUSRESPONSE_ACKTIMEOUTSENTRY']._serialized_start=1077
-  _globals['_GETHOSTSTATUSRESPONSE_ACKTIMEOUTSENTRY']._serialized_end=1127
-  _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_start=1129
-  _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_end=1179
-  _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_start=1181
-  _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_end=1230
-  _globals['_GETHOSTSTATUSRESPONSE_CHANNELABSENTENTRY']._serialized_start=1232
-  _globals['_GETHOSTSTATUSRESPONSE_CHANNELABSENTENTRY']._serialized_end=1284
-  _globals['_GETHOSTSTATUSRESPONSE_REQUESTSREFUSEDENTRY']._serialized_start=1286
-  _globals['_GETHOSTSTATUSRESPONSE_REQUESTSREFUSEDENTRY']._serialized_end=1340
-  _globals['_GETHOSTSTATUSRESPONSE_LATEACKSENTRY']._serialized_start=1342
-  _globals['_GETHOSTSTATUSRESPONSE_LATEACKSENTRY']._serialized_end=1389
-  _globals['_INPUTSOURCESTATUS']._serialized_start=1392
-  _globals['_INPUTSOURCESTATUS']._serialized_end=1823
-  _globals['_INPUTSOURCESTATUS_REJECTEDENTRY']._serialized_start=1680
-  _globals['_INPUTSOURCESTATUS_REJECTEDENTRY']._serialized_end=1727
-  _globals['_INPUTSOURCESTATUS_COUNTERSENTRY']._serialized_start=1729
-  _globals['_INPUTSOURCESTATUS_COUNTERSENTRY']._serialized_end=1776
-  _globals['_INPUTSOURCESTATUS_VALUESENTRY']._serialized_start=1778
-  _globals['_INPUTSOURCESTATUS_VALUESENTRY']._serialized_end=1823
-  _globals['_REPLAYSTATUS']._serialized_start=1826
-  _globals['_REPLAYSTATUS']._serialized_end=2076
-  _globals['_REPLAYSTATUS_PROBLEMSENTRY']._serialized_start=2029
-  _globals['_REPLAYSTATUS_PROBLEMSENTRY']._serialized_end=2076
-  _globals['_FLIGHTMODELSTATUS']._serialized_start=2078
-  _globals['_FLIGHTMODELSTATUS']._serialized_end=2150
-  _globals['_HOSTSERVICE']._serialized_start=2153
-  _globals['_HOSTSERVICE']._serialized_end=2387
+  _globals['_GETHOSTSTATUSRESPONSE']._serialized_end=1436
+  _globals['_GETHOSTSTATUSRESPONSE_ACKTIMEOUTSENTRY']._serialized_start=1124
+  _globals['_GETHOSTSTATUSRESPONSE_ACKTIMEOUTSENTRY']._serialized_end=1174
+  _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_start=1176
+  _globals['_GETHOSTSTATUSRESPONSE_ACKFAILURESENTRY']._serialized_end=1226
+  _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_start=1228
+  _globals['_GETHOSTSTATUSRESPONSE_QUEUEDROPSENTRY']._serialized_end=1277
+  _globals['_GETHOSTSTATUSRESPONSE_CHANNELABSENTENTRY']._serialized_start=1279
+  _globals['_GETHOSTSTATUSRESPONSE_CHANNELABSENTENTRY']._serialized_end=1331
+  _globals['_GETHOSTSTATUSRESPONSE_REQUESTSREFUSEDENTRY']._serialized_start=1333
+  _globals['_GETHOSTSTATUSRESPONSE_REQUESTSREFUSEDENTRY']._serialized_end=1387
+  _globals['_GETHOSTSTATUSRESPONSE_LATEACKSENTRY']._serialized_start=1389
+  _globals['_GETHOSTSTATUSRESPONSE_LATEACKSENTRY']._serialized_end=1436
+  _globals['_CIGISTATUS']._serialized_start=1439
+  _globals['_CIGISTATUS']._serialized_end=2200
+  _globals['_CIGISTATUS_REFUSEDENTRY']._serialized_start=2059
+  _globals['_CIGISTATUS_REFUSEDENTRY']._serialized_end=2105
+  _globals['_CIGISTATUS_PACKETSENTRY']._serialized_start=2107
+  _globals['_CIGISTATUS_PACKETSENTRY']._serialized_end=2153
+  _globals['_CIGISTATUS_UNUSEDENTRY']._serialized_start=2155
+  _globals['_CIGISTATUS_UNUSEDENTRY']._serialized_end=2200
+  _globals['_INPUTSOURCESTATUS']._serialized_start=2203
+  _globals['_INPUTSOURCESTATUS']._serialized_end=2634
+  _globals['_INPUTSOURCESTATUS_REJECTEDENTRY']._serialized_start=2491
+  _globals['_INPUTSOURCESTATUS_REJECTEDENTRY']._serialized_end=2538
+  _globals['_INPUTSOURCESTATUS_COUNTERSENTRY']._serialized_start=2540
+  _globals['_INPUTSOURCESTATUS_COUNTERSENTRY']._serialized_end=2587
+  _globals['_INPUTSOURCESTATUS_VALUESENTRY']._serialized_start=2589
+  _globals['_INPUTSOURCESTATUS_VALUESENTRY']._serialized_end=2634
+  _globals['_REPLAYSTATUS']._serialized_start=2637
+  _globals['_REPLAYSTATUS']._serialized_end=2887
+  _globals['_REPLAYSTATUS_PROBLEMSENTRY']._serialized_start=2840
+  _globals['_REPLAYSTATUS_PROBLEMSENTRY']._serialized_end=2887
+  _globals['_FLIGHTMODELSTATUS']._serialized_start=2889
+  _globals['_FLIGHTMODELSTATUS']._serialized_end=2961
+  _globals['_HOSTSERVICE']._serialized_start=2964
+  _globals['_HOSTSERVICE']._serialized_end=3198
 # @@protoc_insertion_point(module_scope)

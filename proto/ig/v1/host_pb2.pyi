@@ -44,7 +44,7 @@ class GetHostStatusRequest(_message.Message):
     def __init__(self) -> None: ...
 
 class GetHostStatusResponse(_message.Message):
-    __slots__ = ("run_id", "frames_published", "eyepoints_rejected", "ack_timeouts", "ack_failures", "queue_drops", "subscriptions_rejected", "subscribers", "finished", "last_error", "channel_absent", "eyepoint_source", "inputs", "replay", "flight_model", "requests_refused", "late_acks")
+    __slots__ = ("run_id", "frames_published", "eyepoints_rejected", "ack_timeouts", "ack_failures", "queue_drops", "subscriptions_rejected", "subscribers", "finished", "last_error", "channel_absent", "eyepoint_source", "inputs", "replay", "flight_model", "requests_refused", "late_acks", "cigi", "runs")
     class AckTimeoutsEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -104,6 +104,8 @@ class GetHostStatusResponse(_message.Message):
     FLIGHT_MODEL_FIELD_NUMBER: _ClassVar[int]
     REQUESTS_REFUSED_FIELD_NUMBER: _ClassVar[int]
     LATE_ACKS_FIELD_NUMBER: _ClassVar[int]
+    CIGI_FIELD_NUMBER: _ClassVar[int]
+    RUNS_FIELD_NUMBER: _ClassVar[int]
     run_id: str
     frames_published: int
     eyepoints_rejected: int
@@ -121,7 +123,84 @@ class GetHostStatusResponse(_message.Message):
     flight_model: FlightModelStatus
     requests_refused: _containers.ScalarMap[str, int]
     late_acks: _containers.ScalarMap[str, int]
-    def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ..., channel_absent: _Optional[_Mapping[str, int]] = ..., eyepoint_source: _Optional[str] = ..., inputs: _Optional[_Iterable[_Union[InputSourceStatus, _Mapping]]] = ..., replay: _Optional[_Union[ReplayStatus, _Mapping]] = ..., flight_model: _Optional[_Union[FlightModelStatus, _Mapping]] = ..., requests_refused: _Optional[_Mapping[str, int]] = ..., late_acks: _Optional[_Mapping[str, int]] = ...) -> None: ...
+    cigi: CigiStatus
+    runs: int
+    def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ..., channel_absent: _Optional[_Mapping[str, int]] = ..., eyepoint_source: _Optional[str] = ..., inputs: _Optional[_Iterable[_Union[InputSourceStatus, _Mapping]]] = ..., replay: _Optional[_Union[ReplayStatus, _Mapping]] = ..., flight_model: _Optional[_Union[FlightModelStatus, _Mapping]] = ..., requests_refused: _Optional[_Mapping[str, int]] = ..., late_acks: _Optional[_Mapping[str, int]] = ..., cigi: _Optional[_Union[CigiStatus, _Mapping]] = ..., runs: _Optional[int] = ...) -> None: ...
+
+class CigiStatus(_message.Message):
+    __slots__ = ("listen", "host_address", "version", "byte_order", "mode", "ig_mode", "messages", "refused", "packets", "unused", "skipped", "last_host_frame", "ig_frames", "stale", "stale_events", "restarts", "entities", "queries_answered", "queries_invalid", "queries_failed", "periodic_requests", "messages_dropped", "responses_deferred", "last_error", "responses_dropped")
+    class RefusedEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class PacketsEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    class UnusedEntry(_message.Message):
+        __slots__ = ("key", "value")
+        KEY_FIELD_NUMBER: _ClassVar[int]
+        VALUE_FIELD_NUMBER: _ClassVar[int]
+        key: str
+        value: int
+        def __init__(self, key: _Optional[str] = ..., value: _Optional[int] = ...) -> None: ...
+    LISTEN_FIELD_NUMBER: _ClassVar[int]
+    HOST_ADDRESS_FIELD_NUMBER: _ClassVar[int]
+    VERSION_FIELD_NUMBER: _ClassVar[int]
+    BYTE_ORDER_FIELD_NUMBER: _ClassVar[int]
+    MODE_FIELD_NUMBER: _ClassVar[int]
+    IG_MODE_FIELD_NUMBER: _ClassVar[int]
+    MESSAGES_FIELD_NUMBER: _ClassVar[int]
+    REFUSED_FIELD_NUMBER: _ClassVar[int]
+    PACKETS_FIELD_NUMBER: _ClassVar[int]
+    UNUSED_FIELD_NUMBER: _ClassVar[int]
+    SKIPPED_FIELD_NUMBER: _ClassVar[int]
+    LAST_HOST_FRAME_FIELD_NUMBER: _ClassVar[int]
+    IG_FRAMES_FIELD_NUMBER: _ClassVar[int]
+    STALE_FIELD_NUMBER: _ClassVar[int]
+    STALE_EVENTS_FIELD_NUMBER: _ClassVar[int]
+    RESTARTS_FIELD_NUMBER: _ClassVar[int]
+    ENTITIES_FIELD_NUMBER: _ClassVar[int]
+    QUERIES_ANSWERED_FIELD_NUMBER: _ClassVar[int]
+    QUERIES_INVALID_FIELD_NUMBER: _ClassVar[int]
+    QUERIES_FAILED_FIELD_NUMBER: _ClassVar[int]
+    PERIODIC_REQUESTS_FIELD_NUMBER: _ClassVar[int]
+    MESSAGES_DROPPED_FIELD_NUMBER: _ClassVar[int]
+    RESPONSES_DEFERRED_FIELD_NUMBER: _ClassVar[int]
+    LAST_ERROR_FIELD_NUMBER: _ClassVar[int]
+    RESPONSES_DROPPED_FIELD_NUMBER: _ClassVar[int]
+    listen: str
+    host_address: str
+    version: str
+    byte_order: str
+    mode: str
+    ig_mode: str
+    messages: int
+    refused: _containers.ScalarMap[str, int]
+    packets: _containers.ScalarMap[str, int]
+    unused: _containers.ScalarMap[str, int]
+    skipped: int
+    last_host_frame: int
+    ig_frames: int
+    stale: bool
+    stale_events: int
+    restarts: int
+    entities: int
+    queries_answered: int
+    queries_invalid: int
+    queries_failed: int
+    periodic_requests: int
+    messages_dropped: int
+    responses_deferred: int
+    last_error: str
+    responses_dropped: int
+    def __init__(self, listen: _Optional[str] = ..., host_address: _Optional[str] = ..., version: _Optional[str] = ..., byte_order: _Optional[str] = ..., mode: _Optional[str] = ..., ig_mode: _Optional[str] = ..., messages: _Optional[int] = ..., refused: _Optional[_Mapping[str, int]] = ..., packets: _Optional[_Mapping[str, int]] = ..., unused: _Optional[_Mapping[str, int]] = ..., skipped: _Optional[int] = ..., last_host_frame: _Optional[int] = ..., ig_frames: _Optional[int] = ..., stale: _Optional[bool] = ..., stale_events: _Optional[int] = ..., restarts: _Optional[int] = ..., entities: _Optional[int] = ..., queries_answered: _Optional[int] = ..., queries_invalid: _Optional[int] = ..., queries_failed: _Optional[int] = ..., periodic_requests: _Optional[int] = ..., messages_dropped: _Optional[int] = ..., responses_deferred: _Optional[int] = ..., last_error: _Optional[str] = ..., responses_dropped: _Optional[int] = ...) -> None: ...
 
 class InputSourceStatus(_message.Message):
     __slots__ = ("name", "accepted", "rejected", "stale", "last_input_age_s", "last_rejection", "counters", "values")

@@ -145,3 +145,51 @@ def page_layout(nx: int, ny: int, page_size: int) -> tuple[np.ndarray, np.ndarra
     pages_y = -(-size_y // page_size)
     table_offset = np.concatenate([[0], np.cumsum(pages_x * pages_y)[:-1]]).astype(np.int64)
     return pages_x, pages_y, table_offset
+
+
+@dataclass(frozen=True)
+class PatternBands:
+    """A database's vertical patterns as arrays for kernels (the line-of-sight queries and the
+    test references walk them; the renderer draws the bands from its own tables).
+
+    Attributes:
+        top_m: (K, B) float64 top of each band above the voxel's highest corner, metres; a
+            pattern with fewer than B bands repeats its last top.
+        rgb: (K, B, 3) float64 linear colour of each band.
+        count: (K,) int64 bands of each pattern.
+        z_top: the highest point of the terrain with its patterns, from the height data rather
+            than the header's z_max (a wrong header cannot cut a hill off); -inf when empty.
+    """
+
+    top_m: np.ndarray
+    rgb: np.ndarray
+    count: np.ndarray
+    z_top: float
+
+
+def pattern_bands(terrain: TerrainDatabase) -> PatternBands:
+    """The PatternBands of a database (one row, zero bands' worth, when it has no pattern).
+
+    Raises:
+        ValueError: a pattern whose tops and colours do not describe one band or more.
+    """
+    from services.rig.colour import srgb_to_linear
+
+    k = max(len(terrain.patterns), 1)
+    bands = max([1] + [len(p.top_m) for p in terrain.patterns])
+    top = np.zeros((k, bands))
+    rgb = np.zeros((k, bands, 3))
+    count = np.ones(k, np.int64)
+    for n, pattern in enumerate(terrain.patterns):
+        tops = np.asarray(pattern.top_m, np.float64)
+        b = tops.shape[0]
+        if b < 1 or np.asarray(pattern.rgb).shape != (b, 3):
+            raise ValueError(f"pattern {pattern.name!r}: top_m {tops.shape} and rgb "
+                             f"{np.asarray(pattern.rgb).shape} do not describe B >= 1 bands")
+        top[n, :b], top[n, b:] = tops, tops[-1]
+        rgb[n, :b] = srgb_to_linear(np.asarray(pattern.rgb, np.uint8) / 255.0)  # float64
+        count[n] = b
+    z = np.asarray(terrain.z)
+    tallest = max([0.0] + [float(np.float32(p.top_m[-1])) for p in terrain.patterns])
+    return PatternBands(top, rgb, count, float(z.max()) + tallest if z.size else -np.inf)
+
