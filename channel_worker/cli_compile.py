@@ -82,7 +82,7 @@ def run(args: argparse.Namespace) -> int:
     # The workers' warm-up frame (channel_worker/worker.py): any frame size compiles the same
     # kernels, and a tiny one renders in no time once they are compiled.
     tiny = ChannelSpec("compile", 8, 6, first.left_deg, first.right_deg, first.bottom_deg, first.top_deg)
-    request = CompileRequest(scene, options, tiny)
+    request = CompileRequest(scene, options, tiny, queries=rig.cigi.configured)
     cache = kernel_cache_dir()
     if compiled_before(request):
         groups: list[str] = []

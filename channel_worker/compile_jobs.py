@@ -74,11 +74,14 @@ class CompileRequest:
         scene: path of the scene JSON the workers render.
         options: the workers' render options (colour only, as a worker renders).
         channel: the tiny channel the frames are rendered on (the first channel's frustum).
+        queries: the CIGI height and line-of-sight query kernels too (a rig that follows a
+            CIGI host: its rig file has a [cigi] table).
     """
 
     scene: str
     options: RenderOptions
     channel: ChannelSpec
+    queries: bool = False
 
 
 class Progress(NamedTuple):
@@ -146,7 +149,7 @@ def _marker(request: CompileRequest) -> Path:
     from .pipeline.kernel_cache import kernel_cache_dir, sources_stamp
 
     digest = hashlib.sha256()
-    digest.update(repr((request.options, request.channel, sources_stamp())).encode())
+    digest.update(repr((request.options, request.channel, request.queries, sources_stamp())).encode())
     try:
         digest.update(Path(request.scene).read_bytes())
     except OSError:
@@ -195,9 +198,10 @@ def run_group(group: str, request: CompileRequest) -> None:
         bare = dataclasses.replace(database, terrain=None, haze=None, fog=None, clouds=None)
         image = render_frame(bare, request.channel, EYEPOINT, request.options)
         encode_rgb_f16(image.rgb)  # the worker's encoder for the compositor, compiled here too
-        from .query.service import warm_queries
+        if request.queries:
+            from .query.service import warm_queries
 
-        warm_queries(database)  # and the CIGI height and line-of-sight queries
+            warm_queries(database)  # and the CIGI height and line-of-sight queries
     elif group in ("terrain", "sky"):
         # No sub-area lists (bins None): the stage then wants per-sample depth everywhere, with
         # arguments of the same types as a frame's.
@@ -226,7 +230,8 @@ def _drawn(database: Database, options: RenderOptions) -> Database:
 def _check_frame(request: CompileRequest, database: Database,
                  on_progress: Callable[[Progress], None]) -> list[str]:
     """The worker's warm-up (Worker.warm_up: a tiny frame, its image encoded for the
-    compositor, one query of each kind), in this process; returns the kernels it compiled."""
+    compositor, one query of each kind when the rig follows a CIGI host), in this process;
+    returns the kernels it compiled."""
     from .pipeline.render import render_frame
     from .query.service import warm_queries
     from .worker import encode_rgb_f16
@@ -236,7 +241,8 @@ def _check_frame(request: CompileRequest, database: Database,
     with kernel_events(CHECK, on_progress) as compiled:
         image = render_frame(database, request.channel, EYEPOINT, request.options)
         encode_rgb_f16(image.rgb)
-        warm_queries(database)
+        if request.queries:
+            warm_queries(database)
     on_progress(Progress(CHECK, "group-end", seconds=time.perf_counter() - t0, kernels=len(compiled)))
     return compiled
 

@@ -246,12 +246,15 @@ class ChannelWorker:
             only).
         once: stop when the host's run ends instead of subscribing again for the next run.
         security: mutual TLS or plaintext to host and compositor (grpc_util.make_channel).
+        queries: prepare the CIGI query kernels in the warm-up (the rig follows a CIGI host);
+            otherwise the first query, if any, loads them (a second from the cache).
     """
 
     def __init__(self, database: Database, channel: ChannelSpec, *, host_address: str,
                  compositor_address: str, options: RenderOptions | None = None,
-                 once: bool = False, security: Security | None = None) -> None:
+                 once: bool = False, security: Security | None = None, queries: bool = False) -> None:
         self.database = database
+        self.queries = queries
         self.channel = channel
         self.options = (options or RenderOptions()).replace(with_range=False)
         #: Stage times and counters of the last frame rendered.
@@ -291,7 +294,8 @@ class ChannelWorker:
                            self.channel.bottom_deg, self.channel.top_deg)
         image = render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
         encode_rgb_f16(image.rgb)  # compiles (or loads) the encoder too
-        warm_queries(self.database)  # height and line-of-sight queries (CIGI) answered at once
+        if self.queries:
+            warm_queries(self.database)  # the CIGI host's first queries answered at once
         self.ready = True
 
     def status(self) -> worker_pb2.GetWorkerStatusResponse:

@@ -101,6 +101,9 @@ class CigiSpec:
         host: IP address of the host's machine, to send Start of Frame to before the host's
             first message (hosts that wait for the IG to speak first, as the CIGI Class
             Library's MiniHost does); "": wait for the host.
+        configured: the rig file has a ``[cigi]`` table: the rig is meant to follow a CIGI
+            host, so `ig compile` and the workers' warm-up prepare the query kernels (a rig
+            without one pays for them only if a query ever comes).
     """
 
     listen: str = "127.0.0.1:8000"
@@ -112,6 +115,7 @@ class CigiSpec:
     stale_after_s: float = 1.0
     query_timeout_s: float = 0.5
     host: str = ""
+    configured: bool = False
 
 
 @dataclass(frozen=True)
@@ -283,11 +287,12 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         "overlap_deg": (float, 0.0, 45.0), "power": (float, 0.5, 16.0), "gamma": (float, 1.0, 4.0),
         "tolerance_deg": (float, 0.0, 10.0)}, fail))
     tls = _tls(doc.get("tls", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
-    cigi = _cigi(doc.get("cigi", {}), tuple(c.name for c in out), fail)
+    cigi = _cigi(doc, tuple(c.name for c in out), fail)
     return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi)
 
 
-def _cigi(table: Any, channels: tuple[str, ...], fail) -> CigiSpec:
+def _cigi(doc: dict[str, Any], channels: tuple[str, ...], fail) -> CigiSpec:
+    table = doc.get("cigi", {})
     if not isinstance(table, dict):
         raise fail("cigi", f"{table!r} is not a table")
     known = ("listen", "host_port", "origin", "query_channel", "mode", "stale_after_s", "query_timeout_s", "host")
@@ -330,7 +335,7 @@ def _cigi(table: Any, channels: tuple[str, ...], fail) -> CigiSpec:
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
                 raise fail(f"cigi.{key}", f"{v!r} is not a number in [{lo:g}, {hi:g}]")
             out[key] = float(v)
-    return CigiSpec(**out)
+    return CigiSpec(**out, configured="cigi" in doc)
 
 
 def _table(doc: dict[str, Any], name: str, keys: dict[str, tuple[type, float, float]], fail) -> dict[str, Any]:
@@ -404,8 +409,8 @@ def rig_toml(rig: Rig) -> str:
         lines.append("[render]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in changed.items()))
     for name, spec, default in (("sync", rig.sync, SyncSpec()), ("blend", rig.blend, BlendSpec()),
                                 ("tls", rig.tls, TlsSpec()), ("cigi", rig.cigi, CigiSpec())):
-        table = {k: v for k, v in asdict(spec).items() if getattr(default, k) != v}
-        if table:
+        table = {k: v for k, v in asdict(spec).items() if getattr(default, k) != v and k != "configured"}
+        if table or getattr(spec, "configured", False):
             lines.append(f"[{name}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in table.items()))
     for ch in rig.channels:
         s = ch.spec
