@@ -32,9 +32,11 @@ from typing import Any
 
 import numpy as np
 
+from host_sim.publisher import FrameInput
+from host_sim.replay.attitude import hpr_of_matrix
 from ig.v1 import frame_pb2
 from services.rig.environment import Environment, WeatherLayer
-from services.rig.frame import ChannelSpec, Eyepoint, check_channel
+from services.rig.frame import ChannelSpec, Eyepoint, check_channel, hpr_matrix
 from services.rig.grpc_util import clip
 
 from . import packets as pk
@@ -214,8 +216,6 @@ class CigiSession:
     def begin_frame(self):
         """Start an IG frame: consume the host's message(s) (module doc), and return
         (FrameInput for the publisher, the queries due this frame)."""
-        from host_sim.publisher import FrameInput
-
         now = self.clock()
         with self._lock:
             if self.mode == "sync":
@@ -412,15 +412,11 @@ class CigiSession:
         parent = self.pose_of(e.parent_id, depth + 1)
         if parent is None:
             return None
-        from services.rig.frame import hpr_matrix
-
-        from .geometry import WorldPose as _WP
         position = world_of_body(parent, np.array([lat, lon, alt]))[0]
         # Relative attitude: yaw right, pitch up, roll right-wing-down in the parent's body.
         rotation = parent.rotation @ hpr_matrix(yaw, pitch, roll)
-        from host_sim.replay.attitude import hpr_of_matrix
         h, p, r = hpr_of_matrix(rotation[None])[0]
-        return _WP(position, rotation, float(h), float(p), float(r))
+        return WorldPose(position, rotation, float(h), float(p), float(r))
 
     def _ownship_eyepoint(self, now: float) -> Eyepoint | None:
         if self._eyepoint is None:
