@@ -31,6 +31,7 @@ from .compile_jobs import (
     Progress,
     compile_kernels,
     compiled_before,
+    hosted,
     mark_compiled,
     plan,
 )
@@ -82,14 +83,14 @@ def run(args: argparse.Namespace) -> int:
     # The workers' warm-up frame (channel_worker/worker.py): any frame size compiles the same
     # kernels, and a tiny one renders in no time once they are compiled.
     tiny = ChannelSpec("compile", 8, 6, first.left_deg, first.right_deg, first.bottom_deg, first.top_deg)
-    request = CompileRequest(scene, options, tiny, queries=rig.cigi.configured)
+    request = CompileRequest(scene, options, tiny, cigi=rig.cigi.configured)
     cache = kernel_cache_dir()
     if compiled_before(request):
         groups: list[str] = []
         print(f"ig compile: loading the render kernels from {cache} (compiled there before for this scene "
               f"and these options)", flush=True)
     else:
-        groups = plan(database, options, args.jobs)
+        groups = plan(hosted(database, request), options, args.jobs)
         how = (f"{len(groups)} groups in processes of their own ({', '.join(groups)}), then one frame as a "
                f"worker renders it" if groups else "one frame as a worker renders it")
         print(f"ig compile: compiling the render kernels into {cache}: {how} (a minute or so the first time "

@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         worker = ChannelWorker(database, channel.spec, host_address=rig.host_address,
                                compositor_address=rig.compositor_address, options=options, once=args.once,
-                               security=security, queries=rig.cigi.configured)
+                               security=security, cigi=rig.cigi.configured)
         serve_worker(worker, bind_address(channel.address, args.bind), stop, security=security)
     except OSError as exc:
         error("worker", exc)

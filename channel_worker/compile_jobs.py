@@ -74,14 +74,15 @@ class CompileRequest:
         scene: path of the scene JSON the workers render.
         options: the workers' render options (colour only, as a worker renders).
         channel: the tiny channel the frames are rendered on (the first channel's frustum).
-        queries: the CIGI height and line-of-sight query kernels too (a rig that follows a
-            CIGI host: its rig file has a [cigi] table).
+        cigi: the rig follows a CIGI host (its rig file has a [cigi] table): the height and
+            line-of-sight query kernels too, and the atmosphere's with a host's weather
+            (environment.WARM_UP_ENVIRONMENT) for a scene without its own.
     """
 
     scene: str
     options: RenderOptions
     channel: ChannelSpec
-    queries: bool = False
+    cigi: bool = False
 
 
 class Progress(NamedTuple):
@@ -149,7 +150,7 @@ def _marker(request: CompileRequest) -> Path:
     from .pipeline.kernel_cache import kernel_cache_dir, sources_stamp
 
     digest = hashlib.sha256()
-    digest.update(repr((request.options, request.channel, request.queries, sources_stamp())).encode())
+    digest.update(repr((request.options, request.channel, request.cigi, sources_stamp())).encode())
     try:
         digest.update(Path(request.scene).read_bytes())
     except OSError:
@@ -184,6 +185,16 @@ def compile_kernels(request: CompileRequest, database: Database, groups: list[st
     return _check_frame(request, database, on_progress)
 
 
+def hosted(database: Database, request: CompileRequest) -> Database:
+    """The database a group compiles for: under a host's weather when the rig follows a CIGI
+    host, so that the atmosphere's kernels are compiled even for a scene without one."""
+    if not request.cigi:
+        return database
+    from .pipeline.scene.environment import WARM_UP_ENVIRONMENT, with_environment
+
+    return with_environment(database, WARM_UP_ENVIRONMENT)
+
+
 def run_group(group: str, request: CompileRequest) -> None:
     """Render the part of a frame that compiles group's kernels (GROUPS), in this process."""
     from .pipeline.background.background import render_background, scan_alone, warp_alone
@@ -191,14 +202,14 @@ def run_group(group: str, request: CompileRequest) -> None:
     from .pipeline.render import render_frame
     from .pipeline.scene.load import load_scene
 
-    database = load_scene(request.scene)
+    database = hosted(load_scene(request.scene), request)
     if group == "polygons":
         from .worker import encode_rgb_f16
 
         bare = dataclasses.replace(database, terrain=None, haze=None, fog=None, clouds=None)
         image = render_frame(bare, request.channel, EYEPOINT, request.options)
         encode_rgb_f16(image.rgb)  # the worker's encoder for the compositor, compiled here too
-        if request.queries:
+        if request.cigi:
             from .query.service import warm_queries
 
             warm_queries(database)  # and the CIGI height and line-of-sight queries
@@ -230,8 +241,8 @@ def _drawn(database: Database, options: RenderOptions) -> Database:
 def _check_frame(request: CompileRequest, database: Database,
                  on_progress: Callable[[Progress], None]) -> list[str]:
     """The worker's warm-up (Worker.warm_up: a tiny frame, its image encoded for the
-    compositor, one query of each kind when the rig follows a CIGI host), in this process;
-    returns the kernels it compiled."""
+    compositor; when the rig follows a CIGI host, the frame again under a host's weather and one
+    query of each kind), in this process; returns the kernels it compiled."""
     from .pipeline.render import render_frame
     from .query.service import warm_queries
     from .worker import encode_rgb_f16
@@ -241,7 +252,8 @@ def _check_frame(request: CompileRequest, database: Database,
     with kernel_events(CHECK, on_progress) as compiled:
         image = render_frame(database, request.channel, EYEPOINT, request.options)
         encode_rgb_f16(image.rgb)
-        if request.queries:
+        if request.cigi:
+            render_frame(hosted(database, request), request.channel, EYEPOINT, request.options)
             warm_queries(database)
     on_progress(Progress(CHECK, "group-end", seconds=time.perf_counter() - t0, kernels=len(compiled)))
     return compiled

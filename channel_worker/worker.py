@@ -54,7 +54,7 @@ from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_p
 from .pipeline.kernel_cache import serialise_cache_writes
 from .pipeline.render import render_frame
 from .pipeline.scene.database import Database
-from .pipeline.scene.environment import EnvironmentCache
+from .pipeline.scene.environment import WARM_UP_ENVIRONMENT, EnvironmentCache
 from .query.service import add_query_service, warm_queries
 
 log = logging.getLogger("ig.worker")
@@ -246,15 +246,16 @@ class ChannelWorker:
             only).
         once: stop when the host's run ends instead of subscribing again for the next run.
         security: mutual TLS or plaintext to host and compositor (grpc_util.make_channel).
-        queries: prepare the CIGI query kernels in the warm-up (the rig follows a CIGI host);
-            otherwise the first query, if any, loads them (a second from the cache).
+        cigi: the rig follows a CIGI host: the warm-up renders under a host's weather too
+            (environment.WARM_UP_ENVIRONMENT) and prepares the query kernels; otherwise the
+            first weather or query, if any, loads their kernels then.
     """
 
     def __init__(self, database: Database, channel: ChannelSpec, *, host_address: str,
                  compositor_address: str, options: RenderOptions | None = None,
-                 once: bool = False, security: Security | None = None, queries: bool = False) -> None:
+                 once: bool = False, security: Security | None = None, cigi: bool = False) -> None:
         self.database = database
-        self.queries = queries
+        self.cigi = cigi
         self.channel = channel
         self.options = (options or RenderOptions()).replace(with_range=False)
         #: Stage times and counters of the last frame rendered.
@@ -294,8 +295,11 @@ class ChannelWorker:
                            self.channel.bottom_deg, self.channel.top_deg)
         image = render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
         encode_rgb_f16(image.rgb)  # compiles (or loads) the encoder too
-        if self.queries:
-            warm_queries(self.database)  # the CIGI host's first queries answered at once
+        if self.cigi:
+            # The host's first weather and first queries must not wait for a compiler.
+            render_frame(self._environments.get(self.database, WARM_UP_ENVIRONMENT), tiny,
+                         Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
+            warm_queries(self.database)
         self.ready = True
 
     def status(self) -> worker_pb2.GetWorkerStatusResponse:

@@ -178,3 +178,16 @@ def test_a_compile_is_remembered_only_for_the_sources_numba_keyed_it_by(tmp_path
     assert compile_jobs.compiled_before(request)
     monkeypatch.setattr(kernel_cache, "sources_stamp", lambda: "another clone")
     assert not compile_jobs.compiled_before(request)
+
+
+def test_a_rig_that_follows_a_cigi_host_compiles_the_atmosphere_for_a_scene_without_one():
+    from channel_worker.compile_jobs import hosted
+
+    flat = load_scene(bundled_scene_path())  # polygons only: no haze, fog or clouds of its own
+    tiny = ChannelSpec("compile", 8, 6, -30.0, 30.0, -22.5, 22.5)
+    plain = CompileRequest(str(bundled_scene_path()), RenderOptions(), tiny)
+    cigi = dataclasses.replace(plain, cigi=True)
+    assert hosted(flat, plain) is flat and plan(hosted(flat, plain), RenderOptions(), 2) == []
+    weather = hosted(flat, cigi)
+    assert weather.haze is not None and weather.fog is not None and weather.clouds is not None
+    assert plan(weather, RenderOptions(), 2) == ["polygons", "sky"]

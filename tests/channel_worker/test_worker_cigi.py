@@ -92,3 +92,22 @@ def test_a_bad_environment_is_refused_and_counted(make_scene, box_model_factory)
     (ack,) = stub.acks
     assert not ack.ok and "environment.visibility_m: -1.0" in ack.error
     assert w.counters.frames_refused == 1 and not stub.submits
+
+
+def test_a_cigi_rigs_worker_warms_up_under_a_hosts_weather_and_loads_the_query_kernels():
+    from channel_worker.pipeline.scene.environment import WARM_UP_ENVIRONMENT
+    from channel_worker.pipeline.scene.load import bundled_scene_path, load_scene
+    from channel_worker.worker import ChannelWorker
+    from services.rig.frame import ChannelSpec
+
+    database = load_scene(bundled_scene_path())
+    worker = ChannelWorker(database, ChannelSpec.symmetric("centre", 32, 24, 60.0), host_address="127.0.0.1:1",
+                           compositor_address="127.0.0.1:2", cigi=True)
+    try:
+        worker.warm_up()
+        assert worker.ready
+        # The warm-up rendered under the host's weather (its database is in the cache).
+        assert list(worker._environments._results) == [WARM_UP_ENVIRONMENT]
+    finally:
+        worker._host.close()
+        worker._compositor.close()

@@ -63,6 +63,20 @@ MAX_CLOUD_CELLS = 1_000_000
 CLOUD_SEED_BASE = 0x1C16
 
 
+#: An environment with every kind a host may set (haze, a fog stratum, a cloud layer, the sun),
+#: rendered once before the first frame of a rig that follows a CIGI host (the workers' warm-up,
+#: `ig compile`): a scene without an atmosphere of its own would otherwise compile the haze,
+#: fog and cloud kernels in the middle of the run, at the host's first weather (half a minute
+#: on a cold cache, a second or more from it: frames the swap barrier would time out).
+WARM_UP_ENVIRONMENT = Environment(
+    visibility_m=20_000.0,
+    layers=(WeatherLayer(layer_id=0, base_m=-50.0, thickness_m=100.0, visibility_m=2_000.0, coverage=1.0,
+                         cloud=False),
+            WeatherLayer(layer_id=1, base_m=1_500.0, thickness_m=400.0, visibility_m=100.0, coverage=0.5,
+                         cloud=True)),
+    sun=(0.0, 0.6, 0.8))
+
+
 def with_environment(database: Database, env: Environment) -> Database:
     """The database with the host's environment in place of the scene's atmosphere and sun.
 
