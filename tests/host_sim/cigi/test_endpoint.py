@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import socket
 import threading
+import time
 from concurrent import futures
 
 import grpc
@@ -13,6 +14,7 @@ import numpy as np
 import pytest
 
 from host_sim.cigi import packets as pk
+from host_sim.cigi.codec import V3_3, V4_0
 from host_sim.cigi.endpoint import CigiEndpoint, QueryClient, parse_udp_url
 from host_sim.cigi.geometry import world_of_geodetic
 from host_sim.cigi.scripted_host import Keyframe, Query, Script, ScriptedHost
@@ -106,14 +108,14 @@ def drive(ep: CigiEndpoint, host: ScriptedHost, frames: int, stop_after: int = 4
     return inputs
 
 
-@pytest.mark.parametrize("order", ["<", ">"])
-def test_heights_and_sight_lines_come_back_with_the_host_frame_nibble(ground, order):
+@pytest.mark.parametrize(("version", "order"), [(V3_3, "<"), (V3_3, ">"), (V4_0, "<"), (V4_0, ">")])
+def test_heights_and_sight_lines_come_back_with_the_host_frame_nibble(ground, version, order):
     address, _servicer = ground
     port = free_udp_port()
     ep = endpoint(address, port)
     try:
         with ScriptedHost(level_script(), ig_address=ep.listen, bind=("127.0.0.1", port), byte_order=order,
-                          origin=ORIGIN) as host:
+                          origin=ORIGIN, version=version) as host:
             inputs = drive(ep, host, frames=30)
     finally:
         ep.close()
@@ -144,7 +146,8 @@ def test_heights_and_sight_lines_come_back_with_the_host_frame_nibble(ground, or
     for r in by_kind[pk.HatHotResponse]:
         assert r.packet.host_frame_lsn in {f & 0xF for f in range(30)}
     status = ep.session.status()
-    assert status["version"] == "3.3" and status["byte_order"] == {"<": "little", ">": "big"}[order]
+    assert status["version"] == f"{version.major}.{version.minor}"
+    assert status["byte_order"] == {"<": "little", ">": "big"}[order]
     assert status["queries_failed"] == 0 and status["refused"] == {}
 
 
@@ -272,3 +275,23 @@ def test_a_point_inside_the_terrain_has_a_negative_height_above_it(ground):
     assert hat.valid and hat.height == pytest.approx(-0.3, abs=1e-6)
     assert extended.valid and extended.hat == pytest.approx(0.7, abs=1e-6)
     assert extended.hot == pytest.approx(ORIGIN[2] + GROUND_Z, abs=1e-6)
+
+
+def test_an_asynchronous_host_is_followed_at_its_own_rate(ground):
+    address, _ = ground
+    port = free_udp_port()
+    ep = endpoint(address, port, mode="async")
+    try:
+        with ScriptedHost(level_script(), ig_address=ep.listen, bind=("127.0.0.1", port), origin=ORIGIN,
+                          async_rate_hz=50.0) as host:
+            inputs = drive(ep, host, frames=25)
+        time.sleep(0.1)  # the host's last datagram, sent as its thread ended
+        inputs.append(ep.frame_input(0.0))
+    finally:
+        ep.close()
+    used = [i.host_frame_number for i in inputs if i.host_frame_number is not None]
+    # Every message taken (several a frame when the IG is slower, none when faster), in order.
+    assert used == sorted(used) and used[-1] == 25
+    status = ep.session.status()
+    assert status["mode"] == "async" and status["messages_dropped"] == 0 and status["messages"] == 26
+    assert host.sofs  # the IG still sends Start of Frame every frame
