@@ -17,34 +17,29 @@ from services.rig.cli_common import (
     EXIT_OK,
     add_rig_arguments,
     error,
+    geodetic_point,
     load_rig_or_report,
     positive,
+    whole_number,
 )
 
 log = logging.getLogger("ig.cigi_host")
 
 
 def _address(text: str) -> tuple[str, int]:
-    host, sep, port = text.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+    """argparse type: HOST:PORT of a UDP socket."""
+    from host_sim.cigi.endpoint import parse_udp_url
+
+    if ":" not in text:
         raise argparse.ArgumentTypeError(f"address {text!r} is not HOST:PORT")
-    return host, int(port)
-
-
-def _origin(text: str) -> tuple[float, float, float]:
     try:
-        lat, lon, h = (float(v) for v in text.split(","))
+        return parse_udp_url(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"origin {text!r} is not LAT,LON,H") from None
-    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-        raise argparse.ArgumentTypeError(f"origin {text!r}: latitude or longitude out of range")
-    return lat, lon, h
+        raise argparse.ArgumentTypeError(f"address {text!r} is not HOST:PORT") from None
 
 
 def _frames(text: str) -> int:
-    if not text.isdigit() or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"frames {text!r} is not a positive whole number")
-    return int(text)
+    return whole_number(text, 1, 2**31 - 1, "frames")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -59,7 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--script", default=None, metavar="FILE",
                         help="JSON script: path keyframes and queries (default: 2 km straight and level at "
                              "300 m above --origin, HOT every 10 frames, LOS straight down)")
-    parser.add_argument("--origin", type=_origin, default=None,
+    parser.add_argument("--origin", type=geodetic_point, default=None,
                         help="origin of the built-in script LAT,LON,H (degrees, metres; default: the rig "
                              "file's cigi.origin, the bundled airfield unless set)")
     parser.add_argument("--frames", type=_frames, default=600, help="host frames to send (default 600)")

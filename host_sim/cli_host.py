@@ -20,6 +20,7 @@ from services.rig.cli_common import (
     EXIT_OK,
     add_rig_arguments,
     error,
+    geodetic_point,
     load_rig_or_report,
     non_negative,
     positive,
@@ -72,7 +73,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--start", type=non_negative, default=0.0,
                         help="replay from this many seconds after the log's first record (default 0)")
     parser.add_argument("--loop", action="store_true", help="replay again from --start after the end of the log")
-    parser.add_argument("--replay-origin", type=_origin, default=None, metavar="LAT,LON,H",
+    parser.add_argument("--replay-origin", type=geodetic_point, default=None, metavar="LAT,LON,H",
                         help="geodetic reference point of the world frame for a geodetic log, degrees and "
                              "metres (default: the log's first fix)")
     parser.add_argument("--report", nargs="?", const="", default=None, metavar="PNG",
@@ -277,13 +278,3 @@ def _worker_starting(rig, security):
             return False
     return starting
 
-
-def _origin(text: str) -> tuple[float, float, float]:
-    """argparse type: LAT,LON,H in degrees and metres."""
-    try:
-        lat, lon, h = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not LAT,LON,H") from None
-    if not (abs(lat) <= 90 and abs(lon) <= 180 and math.isfinite(h)):
-        raise argparse.ArgumentTypeError(f"{text!r}: latitude must be within +-90, longitude +-180")
-    return lat, lon, h

@@ -505,6 +505,20 @@ def name_of(packet: object, version: Version) -> str:
     return layout.name if layout is not None else type(packet).__name__
 
 
+def packet_size(packet: object, version: Version) -> int:
+    """Bytes a packet takes on the wire in a version (the header included).
+
+    Raises:
+        CigiError: a packet kind the version does not have (cause "packet_kind").
+    """
+    if isinstance(packet, RawPacket):
+        return (4 if version.major >= 4 else 2) + len(packet.body)
+    layout = _BY_KIND[version, "<"].get(type(packet))
+    if layout is None:
+        raise CigiError("packet_kind", f"{type(packet).__name__} does not exist in CIGI {version}")
+    return layout.size
+
+
 # ---- decode -----------------------------------------------------------------------------------
 
 def decode(datagram: bytes, *, sender: str = "host") -> Message:

@@ -128,8 +128,7 @@ class QueryClient:
                     out[id(s_job)] = sight_response(s_job, result, i, self.origin)
         for job in jobs:
             if id(job) not in out:  # an unknown entity or a request no geometry can place
-                out[id(job)] = (height_response(job, Surface(False), self.origin) if isinstance(job, HeightJob)
-                                else sight_response(job, None, 0, self.origin))
+                out[id(job)] = _invalid(job, self.origin)
         packets = [out[id(j)] for j in jobs]
         invalid = sum(1 for p in packets if not p.valid)
         return packets, invalid, failed
@@ -269,9 +268,8 @@ class CigiEndpoint:
 
 
 def _invalid(job: Job, origin: Origin):
+    """The response of a job no query answered: invalid (no surface, no sight line)."""
     if isinstance(job, HeightJob):
-        job.known = False
         return height_response(job, Surface(False), origin)
-    job.known = False
     return sight_response(job, None, 0, origin)
 

@@ -67,7 +67,7 @@ def pose_of_geodetic(lat_deg: float, lon_deg: float, alt_m: float, yaw_deg: floa
     if abs(lat_deg) > 90.0:
         raise ValueError(f"lat: {lat_deg} is outside [-90, 90]")
     o, to_world = origin_frame(origin)
-    here, local = _ecef(lat_deg, lon_deg, alt_m)
+    here, local = geodetic.ecef_point(lat_deg, lon_deg, alt_m)
     rotation = to_world @ local.T @ hpr_matrix(yaw_deg, pitch_deg, roll_deg)
     h, p, r = hpr_of_matrix(rotation[None])[0]
     return WorldPose(to_world @ (here - o), rotation, float(h), float(p), float(r))
@@ -78,32 +78,18 @@ def pose_of_geodetic(lat_deg: float, lon_deg: float, alt_m: float, yaw_deg: floa
 SCALAR_POINTS = 8
 
 
-def _ecef(lat_deg: float, lon_deg: float, h_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """ECEF position of a geodetic point and its ECEF -> local east-north-up rotation."""
-    lat, lon = math.radians(lat_deg), math.radians(lon_deg)
-    sp, cp, sl, cl = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
-    n = geodetic.A_M / math.sqrt(1.0 - geodetic.E2 * sp * sp)  # prime vertical radius of curvature
-    here = np.array([(n + h_m) * cp * cl, (n + h_m) * cp * sl, (n * (1.0 - geodetic.E2) + h_m) * sp])
-    return here, np.array([[-sl, cl, 0.0], [-sp * cl, -sp * sl, cp], [cp * cl, cp * sl, sp]])
-
-
 def point_and_up(lat_deg: float, lon_deg: float, h_m: float, origin: Origin) -> tuple[np.ndarray, np.ndarray]:
     """The world position of one geodetic point and its local vertical (unit, world)."""
     o, to_world = origin_frame(origin)
-    here, local = _ecef(lat_deg, lon_deg, h_m)
+    here, local = geodetic.ecef_point(lat_deg, lon_deg, h_m)
     return to_world @ (here - o), to_world @ local[2]
 
 
 def height_of_world(point: np.ndarray, origin: Origin) -> float:
-    """The geodetic height of one world point (geodetic_of_ecef's iteration, in scalars)."""
+    """The geodetic height of one world point."""
     o, to_world = origin_frame(origin)
     x, y, z = to_world.T @ point + o
-    p = math.hypot(x, y)
-    lat = math.atan2(z, p * (1.0 - geodetic.E2))
-    for _ in range(6):
-        n = geodetic.A_M / math.sqrt(1.0 - geodetic.E2 * math.sin(lat) ** 2)
-        lat = math.atan2(z + geodetic.E2 * n * math.sin(lat), p)
-    return p * math.cos(lat) + z * math.sin(lat) - geodetic.A_M * math.sqrt(1.0 - geodetic.E2 * math.sin(lat) ** 2)
+    return geodetic.height_of_ecef_point(float(x), float(y), float(z))
 
 
 def world_of_geodetic(lat_deg: np.ndarray, lon_deg: np.ndarray, alt_m: np.ndarray, origin: Origin) -> np.ndarray:

@@ -40,7 +40,7 @@ from services.rig.frame import ChannelSpec, Eyepoint, check_channel, hpr_matrix
 from services.rig.grpc_util import clip
 
 from . import packets as pk
-from .codec import decode, encode, name_of
+from .codec import decode, encode, name_of, packet_size
 from .geometry import Origin, WorldPose, pose_of_geodetic, world_of_body
 from .packets import V3_3, CigiError, Message, Version
 from .queries import Job, height_job, sight_job
@@ -172,7 +172,6 @@ class CigiSession:
         self.periodic: dict[tuple[str, int], tuple[int, int, object]] = {}
         self._last_message_at: float | None = None
         self.stale = False
-        self._eyepoint: Eyepoint | None = None
         self._ownship_samples: deque[tuple[float, WorldPose]] = deque(maxlen=2)
         self._ts_offset: float | None = None
         self._ig_frame = 0
@@ -269,9 +268,9 @@ class CigiSession:
             timestamp=int(elapsed * _TICKS_PER_S) % _WRAP,
             last_host_frame=(self.last_host_frame or 0) % _WRAP, condition_flags=0)
         packets: list = [sof]
-        size = _size_of(sof, version)
+        size = packet_size(sof, version)
         while self._pending_replies:
-            n = _size_of(self._pending_replies[0], version)
+            n = packet_size(self._pending_replies[0], version)
             if size + n > MAX_REPLY_BYTES:
                 self.counters.responses_deferred += len(self._pending_replies)
                 break
@@ -351,7 +350,6 @@ class CigiSession:
         self.visibility_m = None
         self.sun = None
         self._ownship_samples.clear()
-        self._eyepoint = None
 
     def _entity_control(self, p, received: _Received) -> bool:
         if p.entity_state == 2 or (p.entity_state == 0 and p.entity_id != 0):
@@ -363,27 +361,29 @@ class CigiSession:
         self.entities[p.entity_id] = EntityState(p.entity_id, p.entity_state, bool(p.attach), p.parent_id,
                                                  p.entity_type, values)
         if p.entity_id == 0:
-            pose = self.pose_of(0)
-            if pose is None:
-                raise ValueError("entity 0 (the ownship) cannot be attached to another entity")
-            t = self._sample_time(received)
-            self._ownship_samples.append((t, pose))
-            self._eyepoint = pose.eyepoint()
+            self._ownship_moved(received)
         return True
 
     def _entity_position_v4(self, p, received: _Received) -> bool:
         # CIGI 4.0 splits Entity Control: the pose comes in Entity Position.
         known = self.entities.get(p.entity_id)
-        state = 1 if known is None else known.state
-        self.entities[p.entity_id] = EntityState(p.entity_id, state, bool(getattr(p, "attach", False)),
-                                                 getattr(p, "parent_id", 0), 0 if known is None else known.entity_type,
-                                                 (p.lat_x, p.lon_y, p.alt_z, p.yaw, p.pitch, p.roll))
+        values = (p.lat_x, p.lon_y, p.alt_z, p.yaw, p.pitch, p.roll)
+        if not all(math.isfinite(v) for v in values):
+            raise ValueError(f"entity {p.entity_id}: pose {values} is not finite")
+        self.entities[p.entity_id] = EntityState(p.entity_id, 1 if known is None else known.state, bool(p.attach),
+                                                 p.parent_id, 0 if known is None else known.entity_type, values)
         if p.entity_id == 0:
-            pose = self.pose_of(0)
-            if pose is not None:
-                self._ownship_samples.append((self._sample_time(received), pose))
-                self._eyepoint = pose.eyepoint()
+            self._ownship_moved(received)
         return True
+
+    def _ownship_moved(self, received: _Received) -> None:
+        """Record the ownship's new pose (the eyepoint is the newest; the two newest give the
+        velocity asynchronous mode extrapolates with)."""
+        pose = self.pose_of(0)
+        if pose is None:
+            self.entities.pop(0)
+            raise ValueError("entity 0 (the ownship) cannot be attached to another entity")
+        self._ownship_samples.append((self._sample_time(received), pose))
 
     def _entity_control_v4(self, p, received: _Received) -> bool:
         if p.entity_state == 2:
@@ -419,14 +419,15 @@ class CigiSession:
         return WorldPose(position, rotation, float(h), float(p), float(r))
 
     def _ownship_eyepoint(self, now: float) -> Eyepoint | None:
-        if self._eyepoint is None:
+        if not self._ownship_samples:
             return None
+        newest = self._ownship_samples[-1][1]
         if self.mode != "async" or not self.extrapolate or len(self._ownship_samples) < 2 or self.stale:
-            return self._eyepoint
+            return newest.eyepoint()
         (t0, a), (t1, b) = self._ownship_samples
         dt = t1 - t0
         if not dt > 1e-6:  # guard: two poses of one instant give no velocity
-            return self._eyepoint
+            return newest.eyepoint()
         ahead = min(max(now - t1, 0.0), MAX_EXTRAPOLATION_S)
         f = ahead / dt
         position = b.position + (b.position - a.position) * f
@@ -575,17 +576,6 @@ class CigiSession:
 def _host_frame(message: Message) -> int | None:
     first = message.packets[0] if message.packets else None
     return first.host_frame if isinstance(first, pk.IGControl) else None
-
-
-_SIZES: dict[tuple[type, Version], int] = {}
-
-
-def _size_of(packet, version: Version) -> int:
-    """Bytes of a packet on the wire (every response packet has a fixed size: cached)."""
-    key = (type(packet), version)
-    if key not in _SIZES:
-        _SIZES[key] = len(encode([packet], version, "<"))
-    return _SIZES[key]
 
 
 _HANDLERS: dict[type, Callable] = {

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from .frame import MAX_CHANNEL_PIXELS
@@ -96,3 +97,17 @@ def field_of_view(text: str) -> float:
     if not 0 < value <= 178:  # also refuses nan
         raise argparse.ArgumentTypeError(f"{text} is not in (0, 178] degrees")
     return value
+
+
+def geodetic_point(text: str) -> tuple[float, float, float]:
+    """argparse type: LAT,LON,H in degrees and metres (WGS-84 latitude within +-90, longitude
+    within +-180, a finite height)."""
+    try:
+        lat, lon, h = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not LAT,LON,H") from None
+    if not (abs(lat) <= 90 and abs(lon) <= 180 and math.isfinite(h)):
+        raise argparse.ArgumentTypeError(f"{text!r}: latitude must be within +-90, longitude +-180, "
+                                         "and the height finite")
+    return lat, lon, h
+

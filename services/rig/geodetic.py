@@ -9,6 +9,8 @@ so a flight 50 km away sits lower than its height says (the earth curves away by
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 #: WGS-84 semi-major axis, metres, and flattening.
@@ -122,3 +124,28 @@ def vertical_angle_deg(lat_deg: np.ndarray, lon_deg: np.ndarray, origin: tuple[f
     up = enu_rotation(lat_deg, lon_deg)[..., 2, :]
     up0 = enu_rotation(np.array(origin[0]), np.array(origin[1]))[2]
     return np.degrees(np.arctan2(np.linalg.norm(np.cross(up, up0), axis=-1), up @ up0))
+
+
+# One point at a time, in scalars: the same formulas as ecef / enu_rotation / geodetic_of_ecef
+# above (tests/host_sim/cigi/test_geometry.py holds them equal), for callers converting a point
+# or two per message (a CIGI host's ownship and requests), where numpy's per-call overhead was
+# most of the cost.
+
+def ecef_point(lat_deg: float, lon_deg: float, h_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """ECEF position (3,) of one geodetic point and its ECEF -> local east-north-up rotation (3, 3)."""
+    lat, lon = math.radians(lat_deg), math.radians(lon_deg)
+    sp, cp, sl, cl = math.sin(lat), math.cos(lat), math.sin(lon), math.cos(lon)
+    n = A_M / math.sqrt(1.0 - E2 * sp * sp)  # prime vertical radius of curvature
+    here = np.array([(n + h_m) * cp * cl, (n + h_m) * cp * sl, (n * (1.0 - E2) + h_m) * sp])
+    return here, np.array([[-sl, cl, 0.0], [-sp * cl, -sp * sl, cp], [cp * cl, cp * sl, sp]])
+
+
+def height_of_ecef_point(x: float, y: float, z: float) -> float:
+    """WGS-84 height, metres, of one ECEF point (geodetic_of_ecef's iteration)."""
+    p = math.hypot(x, y)
+    lat = math.atan2(z, p * (1.0 - E2))
+    for _ in range(6):
+        n = A_M / math.sqrt(1.0 - E2 * math.sin(lat) ** 2)
+        lat = math.atan2(z + E2 * n * math.sin(lat), p)
+    return p * math.cos(lat) + z * math.sin(lat) - A_M * math.sqrt(1.0 - E2 * math.sin(lat) ** 2)
+
