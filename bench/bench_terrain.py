@@ -1,12 +1,14 @@
-"""The background stage's voxel terrain (JP H07-76990) on one core: frame time and voxels
-visited against pitch and altitude, what haze and clouds cost, and speed against error for the
-level bias and the pre-image resolution (bench/README.md).
+"""The background stage's voxel terrain (JP H07-76990), cast straight to the screen, on one
+core: frame time and voxels visited against pitch and altitude, what haze and clouds cost,
+speed against error for the level bias, a lean Voxel Space peer, and the issue's targets
+(bench/README.md).
 
-    python bench/bench_terrain.py                 # what `make bench` runs (8-9 minutes)
+    python bench/bench_terrain.py                 # what `make bench` runs (9-10 minutes)
     python bench/bench_terrain.py --repeats 9     # steadier medians on a busy machine
-    python bench/bench_terrain.py --quick         # smoke run (1 minute); not a measurement
+    python bench/bench_terrain.py --quick         # smoke run (1-2 minutes); not a measurement
     python bench/bench_terrain.py --replot        # redraw terrain.png from terrain.json
     python bench/bench_terrain.py --peer-only     # only the Voxel Space peer (2-3 minutes)
+    python bench/bench_terrain.py --targets-only  # only the targets (section 7; under a minute)
 
 1. Sweep: a 4096 x 4096-voxel, 3 m procedural database (bench/scenes/terrain.py, cached after
    its first build) seen from 50 to 4000 m above the ground under the eye at pitches -90 to 0
@@ -15,27 +17,35 @@ level bias and the pre-image resolution (bench/README.md).
    whole frame (a scene of terrain only), and the voxels visited.
 2. The bundled Jacksboro terrain in the demo scene (terrain, haze, clouds, the airfield's
    polygons), centre channel, along the bundled flight.
-3. The stage split into column scan, cloud scan and warp, with and without haze and clouds;
-   the flat airfield (no terrain, no haze) with and without haze and clouds, to show that a
-   scene without them skips the stage.
-
-The record's keys keep their names from when the stage was called "terrain" and its function
-render_terrain (terrain_ms, render_terrain_ms), so that records compare across versions; they
-now time the "background" stage and render_background.
+3. The stage split into its parts (render_background's `parts`): the terrain cast (the lines
+   through the vertical vanishing point, written straight into the pixels over the sky and
+   the earth plane), the per-sample depth and the clouds (cloud scan and overlay), with and
+   without haze and clouds; the flat airfield (no terrain, no haze) with and without haze and
+   clouds, to show that a scene without them skips the stage.
 4. The level window each level bias really selects (a flat database coloured by level).
-5. Speed against error for level_bias in (-1, 0, 1, 2) and pre-image oversampling in (0.75, 1,
-   1.5, 2): stage time at 1280 x 1024 against the error of that same render, on every 4th
-   pixel each way, against the exact ray-cast reference
-   (channel_worker/testing/terrain_reference.py), on four views.
+5. Speed against error for level_bias in (-1, 0, 1, 2): stage time at 1280 x 1024 against the
+   error of that same render, on every 4th pixel each way, against the exact ray-cast
+   reference (channel_worker/testing/terrain_reference.py), on four views.
 6. A lean Voxel Space peer (bench/voxel_space.py: Comanche's algorithm, one sample per pixel)
    beside our stage, from the same eyes, same frustum, same database: a 3-degree approach on the
    fractal and the Jacksboro terrain and the sweep's views of pitch -20 to 0 degrees; our
    stage's and whole frame's time (1280 x 1024, rgss4) against the peer's (1 sample), and the
    range error of both against the exact reference. `--peer-only` runs this section alone and
    updates its key in terrain.json.
+7. The issue's targets, on the Jacksboro terrain from three eyes (level at 300 m, 2 km up at
+   pitch -10, 60 m up at heading 20): our background stage at rolls 0, 30 and 90 degrees and 1
+   and 4 samples against the Voxel Space peer from the same eye at roll 0 (it has no roll), the
+   range error of our stage at each roll (median, 95th percentile, maximum) against the exact
+   reference, and the stage's speed-up from one numba thread to two (that part on two CPUs).
+   `--targets-only` runs this section alone and updates its key (targets) in terrain.json.
+
+The record's keys keep their names from when the stage was called "terrain" and its function
+render_terrain (terrain_ms, render_terrain_ms), so that records compare across versions; they
+now time the "background" stage and render_background.
 
 Everything runs pinned to one CPU with numba on one thread, after a warm-up (numba compiles on
-the first call). Writes bench/results/terrain.json (the record) and bench/results/terrain.png
+the first call), except section 7's thread scaling, which widens the pin to two CPUs for its
+own frames. Writes bench/results/terrain.json (the record) and bench/results/terrain.png
 (four panels; not checked in).
 """
 
@@ -82,7 +92,6 @@ SPLIT_TIMES_S = (2.0, 20.0)
 #: for the stage split.
 SPLIT_VIEWS = ((50, -90, False), (200, -10, True), (4000, -90, False))
 BIASES = (-1, 0, 1, 2)
-OVERSAMPLES = (0.75, 1.0, 1.5, 2.0)
 #: The error is measured on every ERROR_STRIDE-th pixel each way of the full-size render (320 x
 #: 256 pixels: the reference is slow, ~50 us per ray on one core here), on these views.
 ERROR_STRIDE = 4
@@ -97,8 +106,8 @@ HAZE = {"visibility_m": 30000.0, "scale_height_m": 1500.0, "base_height_m": 0.0,
 CLOUDS = {"cell_m": 400.0, "base_m": 1100.0, "thickness_m": 700.0, "cover": 0.3,
           "extinction_per_m": 0.02, "colour": "#f4f6fa", "seed": 7}
 QUICK: dict[str, Any] = {"repeats": 1, "pitches": (-90, -20, 0), "altitudes": (200, 4000),
-         "flight": (2.0, 20.0), "biases": (-1, 0, 2), "oversamples": (1.0, 2.0),
-         "error_stride": 8, "error_views": ((200, -20),), "split_views": ((200, -10, True),)}
+         "flight": (2.0, 20.0), "biases": (-1, 0, 2), "error_stride": 8,
+         "error_views": ((200, -20),), "split_views": ((200, -10, True),), "target_eyes": 1}
 
 
 class Progress:
@@ -145,29 +154,18 @@ def git_state() -> dict[str, Any]:
             "modified": None if status is None else [line[3:] for line in status.splitlines()]}
 
 
-@contextlib.contextmanager
-def preimage_oversample(value: float) -> Iterator[None]:
-    """Render with PREIMAGE_OVERSAMPLE = value (preimage_grid reads it at every call)."""
-    from channel_worker.pipeline.background import terrain
-
-    original = terrain.PREIMAGE_OVERSAMPLE
-    terrain.PREIMAGE_OVERSAMPLE = value
-    try:
-        yield
-    finally:
-        terrain.PREIMAGE_OVERSAMPLE = original
-
-
-def background_alone(database, view, offsets: np.ndarray, *, level_bias: int = 0):
+def background_alone(database, view, offsets: np.ndarray, *, level_bias: int = 0,
+                     parts: dict[str, float] | None = None):
     """The background stage called by itself, with per-sample depth everywhere (bins None):
-    (Background, its counters)."""
+    (Background, its counters); parts, if given, receives the seconds of its parts
+    ("background.cast", "background.depth", "background.clouds")."""
     from channel_worker.pipeline.background.background import render_background
     from channel_worker.pipeline.geometry.view import frame_constants
 
     counters: dict[str, int] = {}
     frame = frame_constants(view, database, offsets)
     background = render_background(database, view, frame, RenderOptions(terrain_bias=level_bias),
-                                   None, counters)
+                                   None, counters, parts=parts)
     return background, counters
 
 
@@ -179,6 +177,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--peer-only", action="store_true",
                         help="run only the Voxel Space peer comparison and update its key "
                              "(voxel_space_peer) in terrain.json, leaving the rest as it is")
+    parser.add_argument("--targets-only", action="store_true",
+                        help="run only the issue's targets (section 7) and update its key "
+                             "(targets) in terrain.json, leaving the rest as it is")
     args = parser.parse_args(argv)
     if replot(args, "terrain", print_report, plot):
         return 0
@@ -190,6 +191,12 @@ def main(argv: list[str] | None = None) -> int:
 
     from common import pin_to_one_cpu
 
+    # The CPUs this process may use, before the pin: section 7's thread scaling runs on two of
+    # them. numba sizes its thread pool by the affinity when it is imported, so a pool of two
+    # is asked for first (numba runs on one thread all the same, but for that measurement).
+    allowed = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    if len(allowed) >= 2:
+        os.environ.setdefault("NUMBA_NUM_THREADS", "2")
     cpu = pin_to_one_cpu(args.cpu)  # before numba starts its threads
     import numba
 
@@ -197,12 +204,19 @@ def main(argv: list[str] | None = None) -> int:
     from bench_render import machine
 
     progress = Progress()
+    pair = cpu_pair(cpu, allowed)
     if args.peer_only:
-        return peer_only(args.out, quick, repeats, cpu, progress)
+        return section_only(args.out, "voxel_space_peer", functools.partial(
+            voxel_space_peer, quick=quick, repeats=repeats, progress=progress), print_peer, cpu,
+            progress)
+    if args.targets_only:
+        return section_only(args.out, "targets", functools.partial(
+            targets, quick=quick, repeats=repeats, pair=pair, progress=progress), print_targets,
+            cpu, progress)
     record: dict[str, Any] = {
         "benchmark": "background stage's voxel terrain (JP H07-76990), one core: time and voxels "
-                     "against pitch and altitude, options, speed against error for level bias and "
-                     "pre-image resolution",
+                     "against pitch and altitude, options, speed against error for the level "
+                     "bias, a Voxel Space peer, the issue's targets",
         "date": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "machine": machine(),
         "git": git_state(),
@@ -223,6 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     level_window(record, progress)
     bias_grid(record, quick, bias_repeats, progress)
     voxel_space_peer(record, quick, repeats, progress)
+    targets(record, quick, repeats, pair, progress)
     record["seconds"] = progress.seconds
     finish(record, args.out, "terrain", print_report, plot)
     return 0
@@ -288,8 +303,7 @@ def frame_case(database, channel, eyepoint, repeats: int, *, alone: bool = False
         "terrain_ms_all": [1e3 * r.get("background", math.nan) for r in runs],
         "stages_ms": {s: median_ms([r[s] for r in runs]) for s in stages},
         "voxels": counters.get("terrain_voxels"),
-        "columns": counters.get("terrain_columns"),
-        "rows": counters.get("terrain_rows"),
+        "lines": counters.get("terrain_lines"),
         "eye_clamped": counters.get("terrain_eye_clamped"),
     }
 
@@ -440,47 +454,39 @@ def bundled(record: dict, quick: bool, repeats: int, progress: Progress) -> None
                           **stage_split(db, view, offsets, repeats)})
         progress(f"stage split, fractal {agl} m pitch {pitch}: done")
     record["stage_split"] = {
-        "method": "terrain.scan_terrain (column scan), clouds.scan_clouds (cloud scan) and "
-                  "background.render_background (the whole stage) timed one after the other in "
-                  "each repetition; medians over the repetitions; warp_ms = median of total - "
-                  "scan - clouds (the warp plus air, grid set-up, sky haze table and "
-                  "allocation)",
+        "method": "render_background called alone (per-sample depth everywhere, bins=None) "
+                  "with parts: cast_ms = parts['background.cast'] (the air and sky table, and "
+                  "the terrain cast into every pixel over the sky and the earth plane, or the "
+                  "sky and earth alone without terrain), depth_ms = parts['background.depth'] "
+                  "(the per-sample terrain depth), clouds_ms = parts['background.clouds'] (the "
+                  "cloud scan and the cloud overlay); total_ms = the call's wall time; medians "
+                  "over the repetitions after one warm-up call",
         "haze": HAZE, "clouds": CLOUDS, "rows": split}
 
 
+#: The parts of the background stage render_background reports, and their record keys.
+PARTS = {"background.cast": "cast_ms", "background.depth": "depth_ms",
+         "background.clouds": "clouds_ms"}
+
+
 def stage_split(database, view, offsets: np.ndarray, repeats: int) -> dict[str, Any]:
-    """Scan, cloud scan and the rest (warp) of one render_background, in milliseconds.
-
-    Each repetition times the column scan, the cloud scan and the whole stage one after the
-    other, so that a busy moment of the machine falls on all three alike; the warp is the
-    median of the per-repetition remainders."""
-    from channel_worker.pipeline.background import terrain as T
-    from channel_worker.pipeline.background.air import air_params
-    from channel_worker.pipeline.background.clouds import scan_clouds
-
-    options = RenderOptions()
-    grid = T.preimage_grid(view)
-    air = air_params(database, view, options.fog_table_subdivision)
+    """The parts of one render_background (terrain cast, per-sample depth, clouds) and the
+    whole call, in milliseconds: medians over the repetitions, each timing all of them in one
+    call, after one warm-up call."""
     counters: dict[str, int] = {}
-    scans, clouds, totals = [], [], []
+    runs: list[dict[str, float]] = []
+    totals: list[float] = []
     for k in range(repeats + 1):  # the first is the warm-up
+        parts: dict[str, float] = {}
         t0 = time.perf_counter()
-        if database.terrain is not None:
-            T.scan_terrain(database, view, grid, air, options.terrain_bias, {})
+        _, counters = background_alone(database, view, offsets, parts=parts)
         t1 = time.perf_counter()
-        if database.clouds is not None:
-            scan_clouds(database, view, grid, air)
-        t2 = time.perf_counter()
-        _, counters = background_alone(database, view, offsets)
-        t3 = time.perf_counter()
         if k:
-            scans.append(t1 - t0)
-            clouds.append(t2 - t1)
-            totals.append(t3 - t2)
-    warps = [max(t - a - b, 0.0) for t, a, b in zip(totals, scans, clouds, strict=True)]
-    return {"scan_ms": median_ms(scans), "clouds_ms": median_ms(clouds),
-            "warp_ms": median_ms(warps), "total_ms": median_ms(totals),
-            "voxels": counters.get("terrain_voxels")}
+            runs.append(parts)
+            totals.append(t1 - t0)
+    return {**{key: median_ms([r.get(part, 0.0) for r in runs]) for part, key in PARTS.items()},
+            "total_ms": median_ms(totals), "voxels": counters.get("terrain_voxels"),
+            "lines": counters.get("terrain_lines")}
 
 
 # --- 3. a scene without terrain --------------------------------------------------------------
@@ -598,7 +604,6 @@ def level_window(record: dict, progress: Progress) -> None:
 
 def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
     from bench.scenes.terrain import eyepoint_above, fractal_terrain, terrain_scene
-    from channel_worker.pipeline.background import terrain as T
     from channel_worker.pipeline.geometry.view import make_view
 
     terrain = fractal_terrain()
@@ -608,18 +613,9 @@ def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> No
     stride = QUICK["error_stride"] if quick else ERROR_STRIDE
     views = QUICK["error_views"] if quick else ERROR_VIEWS
     biases = QUICK["biases"] if quick else BIASES
-    oversamples = QUICK["oversamples"] if quick else OVERSAMPLES
     rgss4 = RenderOptions(samples=SAMPLES).sample_offsets()
     centre = np.array([[0.5, 0.5]])
     both = np.concatenate([rgss4, centre])  # the reference traces these five per pixel
-
-    # Does setting the module constant change the pre-image? (preimage_oversample relies on it.)
-    probe_view = make_view(sweep_channel(), eyepoint_above(terrain, x, y, 200.0,
-                                                          heading_deg=HEADING_DEG, pitch_deg=-20.0))
-    before = T.preimage_grid(probe_view).ncols
-    saved, T.PREIMAGE_OVERSAMPLE = T.PREIMAGE_OVERSAMPLE, 2.0
-    constant_patch_effective = T.preimage_grid(probe_view).ncols != before
-    T.PREIMAGE_OVERSAMPLE = saved
 
     cases = []
     for agl, pitch in views:
@@ -638,37 +634,34 @@ def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> No
                  f"{len(both)} rays, {agl} m pitch {pitch}: {cases[-1]['ref_seconds']:.1f} s")
     rows = []
     for bias in biases:
-        for over in oversamples:
-            per_view = []
-            with preimage_oversample(over):
-                for c in cases:
-                    walls, (bg, counters) = timed(functools.partial(
-                        background_alone, database, c["view"], rgss4, level_bias=bias), repeats,
-                        warm=False)
-                    bgc, _ = background_alone(database, c["view"], centre, level_bias=bias)
-                    per_view.append({"altitude_agl_m": c["agl"], "pitch_deg": c["pitch"],
-                                     "terrain_ms": median_ms(walls),
-                                     "terrain_ms_all": [1e3 * w for w in walls],
-                                     "voxels": counters["terrain_voxels"],
-                                     "columns": counters["terrain_columns"],
-                                     "rows": counters["terrain_rows"],
-                                     **subset_error(bg, bgc, c)})
-            row = {"level_bias": bias, "preimage_oversample": over,
-                   "terrain_ms": float(np.mean([v["terrain_ms"] for v in per_view])),
-                   "voxels": int(np.mean([v["voxels"] for v in per_view]))}
-            for key in ("colour_mean", "colour_p99", "coverage_disagree", "range_median",
-                        "range_p95"):
-                row[key] = float(np.mean([v[key] for v in per_view]))
-            row["views"] = per_view
-            rows.append(row)
-            progress(f"bias {bias:2d} oversample {over:4.2f}: {row['terrain_ms']:6.1f} ms, "
-                     f"colour error {row['colour_mean']:.4f}")
+        per_view = []
+        for c in cases:
+            walls, (bg, counters) = timed(functools.partial(
+                background_alone, database, c["view"], rgss4, level_bias=bias), repeats,
+                warm=False)
+            bgc, _ = background_alone(database, c["view"], centre, level_bias=bias)
+            per_view.append({"altitude_agl_m": c["agl"], "pitch_deg": c["pitch"],
+                             "terrain_ms": median_ms(walls),
+                             "terrain_ms_all": [1e3 * w for w in walls],
+                             "voxels": counters["terrain_voxels"],
+                             "lines": counters["terrain_lines"],
+                             **subset_error(bg, bgc, c)})
+        row = {"level_bias": bias,
+               "terrain_ms": float(np.mean([v["terrain_ms"] for v in per_view])),
+               "voxels": int(np.mean([v["voxels"] for v in per_view]))}
+        for key in ("colour_mean", "colour_p99", "coverage_disagree", "range_median",
+                    "range_p95"):
+            row[key] = float(np.mean([v[key] for v in per_view]))
+        row["views"] = per_view
+        rows.append(row)
+        progress(f"bias {bias:2d}: {row['terrain_ms']:6.1f} ms, colour error "
+                 f"{row['colour_mean']:.4f}")
     h, w = cases[0]["hit"].shape[:2]
     record["speed_vs_error"] = {
         "scene": f"fractal terrain only, sky = earth = {GREY} (a miss is the same colour in both)",
         "timing": {"width": WIDTH, "height": HEIGHT, "samples": SAMPLES, "repeats": repeats,
-                   "what": "render_background alone, level_bias and pre-image oversample as "
-                           "given; no warm-up call per setting (one per view before the grid)"},
+                   "what": "render_background alone, level_bias as given; no warm-up call "
+                           "per setting (one per view before the grid)"},
         "error": {"pixels": f"every {stride}th pixel each way of the same {WIDTH} x {HEIGHT} "
                             f"render ({w} x {h} pixels, from pixel {stride // 2})",
                   "width": w, "height": h, "stride": stride,
@@ -687,7 +680,6 @@ def bias_grid(record: dict, quick: bool, repeats: int, progress: Progress) -> No
                   "reference_seconds": [c["ref_seconds"] for c in cases]},
         "views": [{"altitude_agl_m": c["agl"], "pitch_deg": c["pitch"]} for c in cases],
         "aggregate": "terrain_ms, voxels and every error: mean over the views",
-        "module_constant_patch_effective": constant_patch_effective,
         "rows": rows}
 
 
@@ -785,12 +777,14 @@ def glide_eyepoints(terrain, approach: dict[str, Any], distances) -> list[tuple[
 def range_error(range_m: np.ndarray, terrain: np.ndarray, ref_range: np.ndarray,
                 ref_hit: np.ndarray) -> dict[str, float]:
     """Relative range error where both the renderer (its terrain mask) and the reference see
-    terrain (median, 95th percentile), and the share of pixels where they disagree on it."""
+    terrain (median, 95th percentile, maximum), and the share of pixels where they disagree on
+    it."""
     r = range_m.astype(np.float64)
     seen = ref_hit & terrain
     rel = np.abs(r[seen] - ref_range[seen]) / ref_range[seen]  # guard: a hit's range is > 0
     return {"range_median": float(np.median(rel)) if rel.size else 0.0,
             "range_p95": float(np.percentile(rel, 95)) if rel.size else 0.0,
+            "range_max": float(rel.max()) if rel.size else 0.0,
             "coverage_disagree": float((terrain != ref_hit).mean())}
 
 
@@ -957,9 +951,298 @@ def voxel_space_peer(record: dict, quick: bool, repeats: int, progress: Progress
         "quick": quick, "repeats": repeats}
 
 
-def peer_only(out: Path, quick: bool, repeats: int, cpu: int | None, progress: Progress) -> int:
-    """--peer-only: run section 6 and put it into terrain.json beside the other sections'
-    (they keep their own date and machine; this one records its own)."""
+# --- 7. the issue's targets ------------------------------------------------------------------
+
+#: The targets' eyes on the bundled Jacksboro terrain, all above the ground at TARGET_XY_M (3 km
+#: south of the airfield's centre): (name, height above the ground m, heading deg, pitch deg).
+TARGET_XY_M = (0.0, -3000.0)
+TARGET_EYES: tuple[tuple[str, float, float, float], ...] = (
+    ("level, 300 m", 300.0, 0.0, 0.0),
+    ("2 km, pitch -10", 2000.0, 0.0, -10.0),
+    ("60 m, heading 20", 60.0, 20.0, 0.0),
+)
+TARGET_ROLLS_DEG = (0.0, 30.0, 90.0)
+#: Samples per pixel of our stage and their patterns (services/rig/options.py
+#: SAMPLE_PATTERNS); the thread scaling runs at TARGET_THREAD_SAMPLES.
+TARGET_SAMPLES = {1: "centre", 4: "rgss4"}
+TARGET_THREAD_SAMPLES = 4
+#: Range error on every TARGET_STRIDE-th pixel each way (160 x 128 reference rays per view).
+TARGET_STRIDE = 8
+#: The issue's targets, as (required, aim): our background stage over the peer's time at roll
+#: 0 (at most), at rolls 30 and 90 over the peer's at roll 0 (at most), and the stage's time on
+#: one numba thread over its time on two (at least).
+TARGET_ROLL0 = (1.0, 0.5)
+TARGET_ROLLED = (1.2, 0.6)
+TARGET_THREADS = (1.85, 1.95)
+
+
+def cpu_pair(cpu: int | None, allowed: list[int]) -> tuple[int, int] | None:
+    """The two CPUs of section 7's thread scaling: the pinned one and the next this process
+    was allowed (None where there is no second one, or no pinning)."""
+    others = [c for c in allowed if c != cpu]
+    return None if cpu is None or not others else (cpu, others[0])
+
+
+def _all_threads_on(cpus: set[int]) -> None:
+    """Every thread of this process (numba's workers too) allowed on cpus."""
+    tasks = Path("/proc/self/task")
+    tids = [int(t.name) for t in tasks.iterdir()] if tasks.is_dir() else [0]
+    for tid in tids:
+        with contextlib.suppress(ProcessLookupError):  # a thread that ended meanwhile
+            os.sched_setaffinity(tid, cpus)
+
+
+@contextlib.contextmanager
+def on_cpus(cpus: set[int]) -> Iterator[None]:
+    """Run on the given CPUs, then back on the main thread's CPUs of before. Each thread
+    keeps the affinity it was started with, so numba's workers, started under the one-CPU pin,
+    are moved too (all the threads of /proc/self/task)."""
+    before = os.sched_getaffinity(0)
+    _all_threads_on(cpus)
+    try:
+        yield
+    finally:
+        _all_threads_on(before)
+
+
+def stage_against_peer(database, maps, eye, peer_eye, options: RenderOptions,
+                       repeats: int) -> dict[str, Any]:
+    """Our background stage (render_frame from eye, as a channel worker calls it) and the
+    peer's frame (from peer_eye), timed alternately in every repetition after one warm-up
+    each, as peer_case does."""
+    from bench.voxel_space import render_voxel_space
+    from channel_worker.pipeline.geometry.view import make_view
+    from channel_worker.pipeline.render import render_frame
+    from services.rig.report import FrameReport
+
+    channel = sweep_channel()
+    peer_view = make_view(channel, peer_eye)
+    out = np.empty((channel.height, channel.width, 3), np.float32)
+    report = FrameReport()
+    peer = None
+    stage, peer_walls = [], []
+    for k in range(repeats + 1):  # the first is the warm-up: numba compiles, pages are read
+        report.clear()
+        render_frame(database, channel, eye, options, report=report, out=out)
+        t1 = time.perf_counter()
+        peer = render_voxel_space(maps, peer_view, sky=database.sky_colour,
+                                  earth=database.earth_colour, out=peer)
+        t2 = time.perf_counter()
+        if k:
+            stage.append(report.stage_seconds["background"])
+            peer_walls.append(t2 - t1)
+    assert peer is not None  # repeats + 1 >= 1 frames
+    ours_ms, peer_ms = median_ms(stage), median_ms(peer_walls)
+    return {"ours_ms": ours_ms, "peer_ms": peer_ms, "ratio": ours_ms / peer_ms,
+            "ours_ms_all": [1e3 * w for w in stage], "peer_ms_all": [1e3 * w for w in peer_walls],
+            "voxels": report.counters.get("terrain_voxels"),
+            "lines": report.counters.get("terrain_lines"),
+            "eye_clamped": report.counters.get("terrain_eye_clamped"),
+            "peer_frame": peer}
+
+
+def target_error(terrain, database, view, stride: int) -> tuple[dict[str, Any], dict]:
+    """Range error of our stage (render_background alone, one centre sample) at the centre
+    of every stride-th pixel each way against the exact reference: (error, reference)."""
+    centre = np.array([[0.5, 0.5]])
+    t0 = time.perf_counter()
+    ref = reference_subset(terrain, view, centre, stride)
+    seconds = time.perf_counter() - t0
+    ours_c, _ = background_alone(database, view, centre)
+    pick = np.ix_(ref["ys"], ref["xs"])
+    error = range_error(ours_c.range_m[pick], ours_c.inv_z[..., 0][pick] > 0.0,
+                        ref["range"][..., 0], ref["hit"][..., 0])
+    return {**error, "reference_hit_share": float(ref["hit"][..., 0].mean()),
+            "reference_seconds": seconds}, ref
+
+
+def thread_scaling(database, eye, repeats: int) -> dict[str, Any]:
+    """The background stage (render_frame, TARGET_THREAD_SAMPLES samples) on one numba
+    thread and on two, alternating in every repetition after one warm-up each."""
+    import numba
+
+    from channel_worker.pipeline.render import render_frame
+    from services.rig.report import FrameReport
+
+    channel = sweep_channel()
+    options = RenderOptions(samples=TARGET_SAMPLES[TARGET_THREAD_SAMPLES], with_range=False)
+    out = np.empty((channel.height, channel.width, 3), np.float32)
+    report = FrameReport()
+    walls: dict[int, list[float]] = {1: [], 2: []}
+    try:
+        for k in range(repeats + 1):  # the first is the warm-up
+            for threads in (1, 2):
+                numba.set_num_threads(threads)
+                report.clear()
+                render_frame(database, channel, eye, options, report=report, out=out)
+                if k:
+                    walls[threads].append(report.stage_seconds["background"])
+    finally:
+        numba.set_num_threads(1)
+    t1, t2 = median_ms(walls[1]), median_ms(walls[2])
+    return {"t1_ms": t1, "t2_ms": t2, "speedup": t1 / t2,
+            "t1_ms_all": [1e3 * w for w in walls[1]], "t2_ms_all": [1e3 * w for w in walls[2]]}
+
+
+def _verdict(what: str, required: str, aim: str, measured: list[float], *,
+             at_most: bool, bounds: tuple[float, float]) -> dict[str, Any]:
+    """One target of the issue, judged on its worst case."""
+    if not measured:
+        return {"what": what, "required": required, "aim": aim, "measured_worst": None,
+                "measured_mean": None, "met_required": None, "met_aim": None}
+    worst = max(measured) if at_most else min(measured)
+    def ok(bound: float) -> bool:
+        return worst <= bound if at_most else worst >= bound
+    return {"what": what, "required": required, "aim": aim, "measured_worst": worst,
+            "measured_mean": float(np.mean(measured)), "met_required": ok(bounds[0]),
+            "met_aim": ok(bounds[1])}
+
+
+def targets(record: dict, quick: bool, repeats: int, pair: tuple[int, int] | None,
+            progress: Progress) -> None:
+    """The issue's targets on the Jacksboro terrain (record["targets"])."""
+    import numba
+
+    from bench.scenes.terrain import describe, eyepoint_above, terrain_scene
+    from bench.voxel_space import voxel_maps
+    from channel_worker.pipeline.geometry.view import make_view
+    from channel_worker.pipeline.jit import thread_pool_size
+    from channel_worker.pipeline.scene.terrain.bundled import load_bundled_terrain
+    from services.rig.frame import Eyepoint
+
+    progress("targets: loading the Jacksboro terrain and taking its Voxel Space maps")
+    terrain = load_bundled_terrain()
+    database = terrain_scene(terrain)
+    maps = voxel_maps(terrain)
+    channel = sweep_channel()
+    eyes = TARGET_EYES[:QUICK["target_eyes"]] if quick else TARGET_EYES
+    stride = TARGET_STRIDE
+    rows: list[dict[str, Any]] = []
+    peer_errors: list[dict[str, Any]] = []
+    level_eyes = {}
+    for name, agl, heading, pitch in eyes:
+        level = eyepoint_above(terrain, *TARGET_XY_M, agl, heading_deg=heading, pitch_deg=pitch)
+        level_eyes[name] = level
+        for roll in TARGET_ROLLS_DEG:
+            eye = Eyepoint(position=level.position, heading_deg=level.heading_deg,
+                           pitch_deg=level.pitch_deg, roll_deg=roll)
+            error, ref = target_error(terrain, database, make_view(channel, eye), stride)
+            for samples, pattern in TARGET_SAMPLES.items():
+                options = RenderOptions(samples=pattern, with_range=False)
+                case = stage_against_peer(database, maps, eye, level, options, repeats)
+                peer = case.pop("peer_frame")
+                rows.append({"eye": name, "roll": roll, "samples": samples,
+                             "pattern": options.samples,
+                             "position_m": [float(c) for c in eye.position],
+                             "hpr_deg": [eye.heading_deg, eye.pitch_deg, eye.roll_deg], **case,
+                             **error})
+                progress(f"targets, {name}, roll {roll:g}, {samples} sample(s): ours "
+                         f"{case['ours_ms']:6.1f} ms, peer {case['peer_ms']:5.1f} ms, x "
+                         f"{case['ratio']:.2f}; range p95 {100 * error['range_p95']:.3f} %, "
+                         f"max {100 * error['range_max']:.2f} %")
+            if roll == 0.0:  # the peer's own error, from the eye it draws (roll 0)
+                pick = np.ix_(ref["ys"], ref["xs"])
+                peer_errors.append({"eye": name, **range_error(
+                    peer.range_m[pick], np.isfinite(peer.range_m[pick]), ref["range"][..., 0],
+                    ref["hit"][..., 0])})
+
+    scaling: dict[str, Any]
+    pool = thread_pool_size()
+    if pair is None or pool < 2:
+        scaling = {"skipped": "no second CPU to run on, or numba's pool has one thread "
+                              f"(NUMBA_NUM_THREADS {pool})",
+                   "rows": []}
+        progress("targets: thread scaling skipped (one CPU)")
+    else:
+        srows = []
+        with on_cpus(set(pair)):
+            for name, level in level_eyes.items():
+                case = thread_scaling(database, level, repeats)
+                srows.append({"eye": name, **case})
+                progress(f"targets, threads, {name}: 1 thread {case['t1_ms']:6.1f} ms, 2 "
+                         f"threads {case['t2_ms']:6.1f} ms, x {case['speedup']:.2f}")
+            affinity_during = sorted(os.sched_getaffinity(0))
+        scaling = {"cpus": list(pair), "affinity_during": affinity_during,
+                   "affinity_after": sorted(os.sched_getaffinity(0)),
+                   "numba_pool": pool,
+                   "threading_layer": numba.threading_layer(),
+                   "samples": TARGET_THREAD_SAMPLES, "roll": 0.0, "rows": srows,
+                   "speedup_mean": float(np.mean([r["speedup"] for r in srows])),
+                   "speedup_worst": min(r["speedup"] for r in srows)}
+
+    summary = []
+    for roll in TARGET_ROLLS_DEG:
+        for samples in TARGET_SAMPLES:
+            sel = [r for r in rows if r["roll"] == roll and r["samples"] == samples]
+            if sel:
+                summary.append({"roll": roll, "samples": samples, "eyes": len(sel),
+                                "ours_ms_mean": float(np.mean([r["ours_ms"] for r in sel])),
+                                "peer_ms_mean": float(np.mean([r["peer_ms"] for r in sel])),
+                                "ratio_mean": float(np.mean([r["ratio"] for r in sel])),
+                                "ratio_worst": max(r["ratio"] for r in sel)})
+    verdicts = [
+        _verdict("terrain (background) stage against the Voxel Space peer at roll 0, 1 and 4 "
+                 "samples: ours / peer", "<= 1.0x", "<= 0.5x",
+                 [r["ratio"] for r in rows if r["roll"] == 0.0], at_most=True,
+                 bounds=TARGET_ROLL0),
+        _verdict("terrain (background) stage at rolls 30 and 90 against the peer at roll 0, 1 "
+                 "and 4 samples: ours / peer", "<= 1.2x", "<= 0.6x",
+                 [r["ratio"] for r in rows if r["roll"] != 0.0], at_most=True,
+                 bounds=TARGET_ROLLED),
+        _verdict("background stage on 2 numba threads over 1 (t1 / t2), roll 0, "
+                 f"{TARGET_THREAD_SAMPLES} samples", ">= 1.85x", ">= 1.95x",
+                 [r["speedup"] for r in scaling["rows"]], at_most=False, bounds=TARGET_THREADS),
+    ]
+    record["targets"] = {
+        "what": "the issue's targets: our background stage (terrain cast straight to the "
+                "screen) against the lean Voxel Space peer (bench/voxel_space.py, 1 sample) "
+                "from the same eye at roll 0 (the peer has no roll), at rolls 0, 30 and 90 "
+                "and 1 and 4 samples; the range error of our stage at each roll; the stage's "
+                "speed-up from one numba thread to two",
+        "terrain": {"name": "bundled Jacksboro (load_bundled_terrain)", **describe(terrain)},
+        "scene": "terrain only (bench/scenes/terrain.py terrain_scene): no polygons, haze or "
+                 "clouds",
+        "channel": {"width": WIDTH, "height": HEIGHT, "fov_h_deg": FOV_H_DEG,
+                    "square_pixels": True},
+        "eyes": [{"eye": name, "xy_m": list(TARGET_XY_M), "agl_m": agl, "heading_deg": heading,
+                  "pitch_deg": pitch} for name, agl, heading, pitch in eyes],
+        "rolls_deg": list(TARGET_ROLLS_DEG),
+        "samples": {str(n): pattern for n, pattern in TARGET_SAMPLES.items()},
+        "timing": "ours_ms: FrameReport.stage_seconds['background'] inside render_frame "
+                  "(RenderOptions(samples=1 or 4, with_range=False), output buffer reused); "
+                  "peer_ms: render_voxel_space's wall time from the same eye at roll 0; the two "
+                  "alternate in every repetition; medians over the repeats after one warm-up "
+                  "frame each; ratio = ours_ms / peer_ms. One numba thread on one pinned CPU, "
+                  "except the thread scaling",
+        "error": f"once per eye and roll (not per sample count): relative range error |r - "
+                 f"r_ref| / r_ref at the centre of every {stride}th pixel each way (from pixel "
+                 f"{stride // 2}) where both our stage and the reference see terrain: median, "
+                 "95th percentile, maximum; coverage_disagree: the share of those pixels where "
+                 "they disagree on seeing terrain (ours: inv_z > 0); ours: render_background "
+                 "alone with one centre sample (its range_m); the reference: "
+                 "channel_worker/testing/terrain_reference.py reference_rays through the pixel "
+                 "centres. peer_error: the peer's, from the roll-0 eye, the same way",
+        "stride": stride, "repeats": repeats, "quick": quick,
+        "rows": rows, "peer_error": peer_errors, "summary": summary,
+        "summary_what": "per (roll, samples) over the eyes: mean of the times, mean of the "
+                        "per-eye ratios and the worst (highest) ratio",
+        "thread_scaling": {
+            "what": f"the background stage (render_frame, {TARGET_THREAD_SAMPLES} samples, "
+                    "roll 0) with numba.set_num_threads(1) and (2), alternating in every "
+                    "repetition, with every thread of the process allowed on two CPUs for "
+                    "these frames only (the one-CPU pin restored after); speedup = t1 / t2 of "
+                    "the medians", **scaling},
+        "targets": verdicts,
+        "judged": "each target on its worst case: the highest ratio over the eyes (and sample "
+                  "counts), the lowest speed-up over the eyes",
+    }
+
+
+def section_only(out: Path, key: str, run: Callable[[dict], None],
+                 show: Callable[[dict], None], cpu: int | None, progress: Progress) -> int:
+    """--peer-only, --targets-only: run one section (run(record) fills record[key]) and put it
+    into terrain.json beside the other sections' (they keep their own date and machine; this
+    one records its own)."""
     import json
 
     import numba
@@ -967,20 +1250,20 @@ def peer_only(out: Path, quick: bool, repeats: int, cpu: int | None, progress: P
 
     path = out / "terrain.json"
     record = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
-    peer: dict[str, Any] = {}
-    voxel_space_peer(peer, quick, repeats, progress)
-    section = peer["voxel_space_peer"]
+    fresh: dict[str, Any] = {}
+    run(fresh)
+    section = fresh[key]
     section.update({"date": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
                     "machine": machine(), "git": git_state(),
                     "one_core": {"cpu": cpu, "numba_threads": numba.get_num_threads()},
                     "seconds": progress.seconds})
     section["machine"]["load_average_1min_at_end"] = (os.getloadavg()[0]
                                                       if hasattr(os, "getloadavg") else None)
-    record["voxel_space_peer"] = section
-    print_peer(section)
+    record[key] = section
+    show(section)
     out.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-    print(f"wrote {path} (voxel_space_peer)")
+    print(f"wrote {path} ({key})")
     return 0
 
 
@@ -1036,17 +1319,21 @@ def print_report(record: dict) -> None:
     b = record["bundled"]
     print(f"\nbundled Jacksboro terrain, demo scene (terrain, haze, clouds, airfield), "
           f"{b['channel']['name']} channel {b['channel']['width']} x {b['channel']['height']}")
-    table(["t s", "terrain ms", "frame ms", "voxels", "columns x rows"],
+    table(["t s", "terrain ms", "frame ms", "voxels", "lines"],
           [[f"{p['t_s']:g}", f"{p['terrain_ms']:.1f}", f"{p['frame_ms']:.1f}", f"{p['voxels']:,}",
-            f"{p['columns']} x {p['rows']}"] for p in b["points"]])
+            f"{p.get('lines', '-')}"] for p in b["points"]])
 
-    print("\nbackground stage split (median ms): scan = column scan, clouds = cloud scan, "
-          "warp = the rest")
-    table(["scene", "view", "variant", "scan", "clouds", "warp", "total", "voxels"],
-          [[r["scene"], r["view"], r["variant"], f"{r['scan_ms']:.1f}", f"{r['clouds_ms']:.1f}",
-            f"{r['warp_ms']:.1f}", f"{r['total_ms']:.1f}",
-            f"{r['voxels']:,}" if r["voxels"] is not None else "-"]
-           for r in record["stage_split"]["rows"]])
+    split = record["stage_split"]["rows"]
+    print("\nbackground stage split (median ms): cast = air, sky table and the terrain cast "
+          "into the pixels, depth = per-sample depth (everywhere: render_background alone), "
+          "clouds = cloud scan and overlay")
+    if split and "cast_ms" not in split[0]:
+        print("  (a record of the pre-image design, before the direct cast: not shown)")
+    else:
+        table(["scene", "view", "variant", "cast", "depth", "clouds", "total", "voxels"],
+              [[r["scene"], r["view"], r["variant"], f"{r['cast_ms']:.1f}",
+                f"{r['depth_ms']:.1f}", f"{r['clouds_ms']:.1f}", f"{r['total_ms']:.1f}",
+                f"{r['voxels']:,}" if r["voxels"] is not None else "-"] for r in split])
 
     nt = record["no_terrain"]
     print(f"\na scene without terrain or haze ({nt['channel']} channel, {nt['eyepoint']})")
@@ -1071,17 +1358,16 @@ def print_report(record: dict) -> None:
     print(f"\nspeed against error: background stage at {WIDTH} x {HEIGHT} (median ms) and its "
           f"error on every {e['stride']}th pixel ({e['width']} x {e['height']}) against the exact "
           f"reference; mean over {len(sv['views'])} views")
-    table(["bias", "oversample", "ms", "voxels", "colour mean", "colour p99", "coverage",
-           "range med", "range p95"],
-          [[str(r["level_bias"]), f"{r['preimage_oversample']:g}", f"{r['terrain_ms']:.1f}",
-            f"{r['voxels']:,}", f"{r['colour_mean']:.4f}", f"{r['colour_p99']:.4f}",
+    table(["bias", "ms", "voxels", "colour mean", "colour p99", "coverage", "range med",
+           "range p95"],
+          [[str(r["level_bias"]), f"{r['terrain_ms']:.1f}", f"{r['voxels']:,}",
+            f"{r['colour_mean']:.4f}", f"{r['colour_p99']:.4f}",
             f"{r['coverage_disagree']:.4f}", f"{r['range_median']:.4f}",
             f"{r['range_p95']:.4f}"] for r in sv["rows"]])
-    if not sv["module_constant_patch_effective"]:
-        print("  (setting terrain.PREIMAGE_OVERSAMPLE had no effect at this commit: the "
-              "oversample rows all show the default)")
     if "voxel_space_peer" in record:  # records before the peer have none
         print_peer(record["voxel_space_peer"])
+    if "targets" in record:  # nor the targets
+        print_targets(record["targets"])
     m = record["machine"]
     noise = record["sweep_noise"]
     print(f"\nnoise: the slowest of a sweep cell's frames is x {noise['median']:.2f} the fastest "
@@ -1117,6 +1403,53 @@ def print_peer(peer: dict) -> None:
     t = peer["target"]
     print(f"target: {t['what']}: worst ours / peer x {t['measured_worst']:.1f} -> "
           + ("MET" if t["met"] else "NOT MET"))
+
+
+def print_targets(section: dict) -> None:
+    """Section 7's tables: every row, the summary per roll and sample count, the thread
+    scaling and the verdict on each of the issue's targets."""
+    ch = section["channel"]
+    print(f"\ntargets: our background stage against the Voxel Space peer (1 sample, roll 0, "
+          f"same eye), Jacksboro terrain, {ch['width']} x {ch['height']}, one core, median ms; "
+          f"our relative range error at pixel centres (every {section['stride']}th pixel) "
+          "against the exact reference, per cent: median, p95, max, and the share of pixels "
+          "disagreeing on terrain or not (cov)")
+    table(["eye", "roll", "samples", "ours ms", "peer ms", "ours/peer", "voxels", "range med",
+           "range p95", "range max", "cov"],
+          [[r["eye"], f"{r['roll']:g}", str(r["samples"]), f"{r['ours_ms']:.1f}",
+            f"{r['peer_ms']:.1f}", f"{r['ratio']:.2f}",
+            f"{r['voxels']:,}" if r["voxels"] is not None else "-",
+            *(f"{100.0 * r[k]:.3f}" for k in ("range_median", "range_p95", "range_max",
+                                              "coverage_disagree"))]
+           for r in section["rows"]])
+    if section.get("peer_error"):
+        print("the peer's own range error (roll 0), per cent")
+        table(["eye", "range med", "range p95", "range max", "cov"],
+              [[e["eye"], *(f"{100.0 * e[k]:.3f}" for k in ("range_median", "range_p95",
+                                                            "range_max", "coverage_disagree"))]
+               for e in section["peer_error"]])
+    print("per roll and sample count, over the eyes")
+    table(["roll", "samples", "ours ms", "peer ms", "mean ours/peer", "worst ours/peer"],
+          [[f"{s['roll']:g}", str(s["samples"]), f"{s['ours_ms_mean']:.1f}",
+            f"{s['peer_ms_mean']:.1f}", f"{s['ratio_mean']:.2f}", f"{s['ratio_worst']:.2f}"]
+           for s in section["summary"]])
+    sc = section["thread_scaling"]
+    if sc.get("skipped"):
+        print(f"thread scaling: skipped ({sc['skipped']})")
+    else:
+        print(f"thread scaling: background stage, roll 0, {sc['samples']} samples, on CPUs "
+              f"{sc['cpus']} ({sc['threading_layer']} threading layer)")
+        table(["eye", "1 thread ms", "2 threads ms", "t1/t2"],
+              [[r["eye"], f"{r['t1_ms']:.1f}", f"{r['t2_ms']:.1f}", f"{r['speedup']:.2f}"]
+               for r in sc["rows"]] + [["mean", "", "", f"{sc['speedup_mean']:.2f}"]])
+    for t in section["targets"]:
+        if t["measured_worst"] is None:
+            print(f"target: {t['what']}: not measured")
+            continue
+        verdict = ("AIM MET" if t["met_aim"] else "REQUIRED MET" if t["met_required"]
+                   else "NOT MET")
+        print(f"target: {t['what']}: required {t['required']}, aim {t['aim']}; worst x "
+              f"{t['measured_worst']:.2f}, mean x {t['measured_mean']:.2f} -> {verdict}")
 
 
 def plot(record: dict, path: Path) -> bool:
@@ -1158,36 +1491,31 @@ def plot(record: dict, path: Path) -> bool:
               + r["variant"].removesuffix(" (demo)") for r in split]
     ypos = np.arange(len(split))
     left = np.zeros(len(split))
-    for key, bar_colour in (("scan_ms", "tab:brown"), ("clouds_ms", "tab:gray"),
-                            ("warp_ms", "tab:blue")):
-        v = np.array([r[key] for r in split])
+    for key, bar_colour in (("cast_ms", "tab:brown"), ("depth_ms", "tab:blue"),
+                            ("clouds_ms", "tab:gray")):
+        v = np.array([r.get(key, 0.0) for r in split])
         axes[1, 0].barh(ypos, v, left=left, color=bar_colour, label=key.removesuffix("_ms"))
         left += v
     axes[1, 0].set_yticks(ypos, labels, fontsize=6)
     axes[1, 0].invert_yaxis()
     axes[1, 0].set_xlabel("median ms, one core")
-    axes[1, 0].set_title("background stage split: scan, cloud scan, warp", fontsize=9)
+    axes[1, 0].set_title("background stage split: terrain cast, per-sample depth, clouds",
+                         fontsize=9)
     axes[1, 0].legend(fontsize=7)
 
     sv = record["speed_vs_error"]
-    markers = {0.75: "v", 1.0: "o", 1.5: "s", 2.0: "D"}
     bias_colour = {-1: "tab:green", 0: "tab:blue", 1: "tab:orange", 2: "tab:red"}
     ax = axes[1, 1]
-    for bias in sorted({r["level_bias"] for r in sv["rows"]}):
-        pts = sorted((r for r in sv["rows"] if r["level_bias"] == bias),
-                     key=lambda r: r["preimage_oversample"])
-        ax.plot([r["colour_mean"] for r in pts], [r["terrain_ms"] for r in pts], "-",
-                color=bias_colour.get(bias, "k"), lw=0.8, label=f"level bias {bias}")
-        for r in pts:
-            ax.plot(r["colour_mean"], r["terrain_ms"], markers.get(r["preimage_oversample"], "o"),
-                    color=bias_colour.get(bias, "k"))
-            ax.annotate(f"{r['preimage_oversample']:g}", (r["colour_mean"], r["terrain_ms"]),
-                        textcoords="offset points", xytext=(4, 3), fontsize=6)
+    pts = sorted(sv["rows"], key=lambda r: r["level_bias"])
+    ax.plot([r["colour_mean"] for r in pts], [r["terrain_ms"] for r in pts], "-", color="0.5",
+            lw=0.8)
+    for r in pts:
+        ax.plot(r["colour_mean"], r["terrain_ms"], "o", color=bias_colour.get(r["level_bias"], "k"),
+                label=f"level bias {r['level_bias']}")
     ax.set_xlabel(f"mean colour error against the exact reference (every "
                   f"{sv['error']['stride']}th pixel, linear RGB)")
     ax.set_ylabel(f"background stage, median ms at {WIDTH} x {HEIGHT}")
-    ax.set_title("speed against error: level bias (colour), pre-image oversample (label)",
-                 fontsize=9)
+    ax.set_title("speed against error: level bias", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110, bbox_inches="tight")  # long bar labels on the left

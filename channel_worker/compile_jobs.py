@@ -8,8 +8,9 @@ that never call each other:
   store and the resolve filters), i.e. a frame of the scene without its atmosphere, where the
   background is contract.no_background(), whose arrays have the real background's types; and
   the worker's image encoder;
-- ``background``: the background stage alone (terrain scan and warp, sky and earth, clouds, the
-  frame's air), with no sub-area lists (bins=None: sample depth everywhere, same types).
+- ``background``: the background stage alone, with no sub-area lists (bins=None: sample depth
+  everywhere, same types), in two groups: ``terrain`` (the terrain cast and its per-sample
+  depth) and ``sky`` (sky and earth, clouds, the frame's air).
 
 Each group is compiled in a process of its own (spawned, not forked: numba's thread pools do
 not survive a fork), all writing into the machine's kernel cache (pipeline/kernel_cache.py).
@@ -55,8 +56,8 @@ if TYPE_CHECKING:
 #: The groups, in the order they are handed to processes, and what each compiles.
 GROUPS = {
     "polygons": "geometry, binning, visibility, shading",
-    "terrain": "the terrain's column scan",
-    "sky": "the warp: sky and earth, clouds, haze and fog",
+    "terrain": "the terrain cast and its per-sample depth",
+    "sky": "sky and earth, clouds, haze and fog",
 }
 
 #: The last step: one frame as a worker renders it (loads every kernel, compiles any missed).
@@ -117,7 +118,8 @@ def plan(database: Database, options: RenderOptions, jobs: int) -> list[str]:
 
     Three processes on two cores rather than two: the background's kernels took 32 s in one
     process against the polygons' 21 s; split into the scan's and the warp's, the three
-    share the cores evenly (the demo scene's compile on a cold cache 31.3 -> 27.3 s)."""
+    share the cores evenly (the demo scene's compile on a cold cache 31.3 -> 27.3 s); the
+    terrain cast replaced both in 2026-11, and its group is split the same way."""
     if jobs < 2 or options.renderer == "scanline":
         return []
     scene = _drawn(database, options)
@@ -197,7 +199,7 @@ def hosted(database: Database, request: CompileRequest) -> Database:
 
 def run_group(group: str, request: CompileRequest) -> None:
     """Render the part of a frame that compiles group's kernels (GROUPS), in this process."""
-    from .pipeline.background.background import render_background, scan_alone, warp_alone
+    from .pipeline.background.background import render_background
     from .pipeline.geometry.view import frame_constants, make_view
     from .pipeline.render import render_frame
     from .pipeline.scene.load import load_scene
@@ -216,17 +218,20 @@ def run_group(group: str, request: CompileRequest) -> None:
     elif group in ("terrain", "sky"):
         # No sub-area lists (bins None): the stage then wants per-sample depth everywhere, with
         # arguments of the same types as a frame's.
+        # The terrain group casts the terrain (and its per-sample depth) without the clouds,
+        # the sky group paints the sky and earth plane and lays the clouds without the terrain.
         scene = _drawn(database, request.options)
-        view = make_view(request.channel, EYEPOINT)
         if group == "terrain":
-            if scene.terrain is not None:
-                scan_alone(scene, view, request.options)
-            return
-        frame = frame_constants(view, scene, request.options.sample_offsets())
-        if scene.terrain is None and scene.clouds is None:
-            render_background(scene, view, frame, request.options, None, {})  # sky and earth alone
+            if scene.terrain is None:
+                return
+            scene = dataclasses.replace(scene, clouds=None)
         else:
-            warp_alone(scene, view, frame, request.options)
+            scene = dataclasses.replace(scene, terrain=None)
+            if scene.haze is None and scene.fog is None and scene.clouds is None:
+                return
+        view = make_view(request.channel, EYEPOINT)
+        frame = frame_constants(view, scene, request.options.sample_offsets())
+        render_background(scene, view, frame, request.options, None, {})
     else:
         raise ValueError(f"group: {group!r} is none of {', '.join(GROUPS)}")
 

@@ -15,10 +15,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numba
-from llvmlite import ir
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit
 
 #: numba's option names for a cached function without reference counting (the CPU target's
 #: ``_nrt`` option: not in numba's type stubs, hence passed as a mapping).
@@ -45,33 +42,6 @@ def lanes(threads: int, n: int) -> int:
     it uncacheable: it reads the threading layer through a pointer.)
     """
     return max(1, min(threads, n))
-
-
-@intrinsic
-def prefetch(typingctx: Any, array: Any, index: Any) -> Any:
-    """Ask the CPU to fetch the cache line holding element ``index`` of a C-contiguous array
-    (counted over its flattened elements) for reading, and go on: LLVM's ``llvm.prefetch``
-    (read, high locality, data cache). A hint: it never faults, whatever the address.
-
-    Why: the warp reads the terrain's pre-image across its columns, 15 KB apart in memory, and
-    neither the hardware's stride nor its stream prefetcher follows an 8-pixel block's walk
-    over 11 of them; each block stalled on ~40 cache misses one after another (measured with
-    perf on the demo frame: two texel loads held 27 % of the warp's samples).
-    """
-    if not isinstance(array, types.Array) or not isinstance(index, types.Integer):
-        return None
-    sig = types.void(array, index)
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        ary = context.make_array(signature.args[0])(context, builder, args[0])
-        address = builder.bitcast(builder.gep(ary.data, [args[1]]), ir.IntType(8).as_pointer())
-        i32 = ir.IntType(32)
-        fnty = ir.FunctionType(ir.VoidType(), [address.type, i32, i32, i32])
-        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0")
-        builder.call(fn, [address, i32(0), i32(3), i32(1)])  # read, keep in all levels, data
-        return context.get_dummy_value()
-
-    return sig, codegen
 
 
 def thread_pool_size() -> int:

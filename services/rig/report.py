@@ -23,7 +23,7 @@ class FrameReport:
         counters: what the stages counted ("translucent_dropped", "terrain_voxels",
             "subarea_entries_full", ...; docs/pipeline.md lists them).
         part_seconds: seconds of the parts of a stage, named "stage.part" (the background's
-            "background.scan", "background.clouds", "background.warp"): where a stage's time
+            "background.cast", "background.depth", "background.clouds"): where a stage's time
             goes, inside its stage_seconds (not added to the total).
     """
 

@@ -60,7 +60,7 @@ def _ig(argv: list[str], env: dict[str, str]) -> subprocess.CompletedProcess:
 
 def test_compile_jobs_fill_a_cold_cache_that_a_worker_then_loads_every_kernel_from(tmp_path):
     # An empty cache, as on a fresh clone: every kernel compiles, in three processes at once
-    # (polygons, the terrain's scan, the warp).
+    # (polygons, the terrain cast, the sky and clouds).
     env = {**os.environ, "IG_CACHE_DIR": str(tmp_path / "cache")}
     scene = str(demo_scene_path())
     done = _ig(["compile", "--jobs", "2", "--scene", scene], env)

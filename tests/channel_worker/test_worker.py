@@ -154,7 +154,7 @@ def test_terrain_voxels_are_reported_per_frame_and_in_total(make_scene, box_mode
     # The background stage's parts: each measured, together inside the stage's time.
     stages = {s.stage: s.seconds for s in status.last_frame_report.stages}
     parts = {s.stage: s.seconds for s in status.last_frame_report.parts}
-    assert set(parts) == {"background.scan", "background.clouds", "background.warp"}
+    assert set(parts) == {"background.cast", "background.depth", "background.clouds"}
     assert all(v >= 0.0 for v in parts.values())
     assert sum(parts.values()) <= stages["background"]
 

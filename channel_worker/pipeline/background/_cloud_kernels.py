@@ -12,7 +12,7 @@ from numba import njit, prange
 from channel_worker.pipeline.contract import F_ON, F_WORLD_AXIS
 from channel_worker.pipeline.fog.fog import fog_blend
 
-from ._scan_kernels import ground_ray_span
+from ._cast_kernels import ground_ray_span
 from .haze import haze_amount
 
 #: A ray that has kept less than this of its light is opaque: its row stops integrating.

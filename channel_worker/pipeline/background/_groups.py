@@ -5,12 +5,12 @@ Background); the groups here never leave the background stage. Each is a NamedTu
 and numbers, which numba passes whole into a kernel, so every kernel's signature says at a
 glance what it consumes:
 
-    scan_kernel(pages: VoxelPages, grid: ColumnGrid, limits: ScanLimits, air, out_pre, out_visits,
-                threads)
+    cast_kernel(pages: VoxelPages, fan: LineFan, limits: ScanLimits, air, frame,
+                sky: SkyTable, out: BackgroundArrays, aux: CastPixels, visits, threads)
+    sample_depth_kernel(frame, aux: CastPixels, depth: SampleDepth, out_inv_z, threads)
     scan_clouds_kernel(slabs: CloudSlabs, columns: CloudColumns, eye, r_far, air, out)
-    warp_kernel(frame, pre: Preimage, air, sky_haze: SkyHaze, clouds: CloudImage,
-                depth: SampleDepth, block, out: BackgroundArrays, threads)
-    sky_earth_kernel(frame, air, out_rgb, out_range)
+    cloud_over_kernel(frame, clouds: CloudImage, block, range_m, rgb, out_cloud, threads)
+    sky_earth_kernel(frame, air, sky: SkyTable, out_rgb, out_range)
 
 Angles are radians: azimuth clockwise from north, elevation up from the horizontal. Ground
 ranges and heights are metres.
@@ -22,19 +22,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: Pre-image texel channels: premultiplied linear RGB after haze and fog, coverage, and the
-#: inverse range (1/metres) of the surface seen at the texel's centre elevation (0 where none
-#: is). Written by the column scan, read by the warp.
-PRE_R, PRE_G, PRE_B, PRE_A, PRE_IR = 0, 1, 2, 3, 4
-PRE_CHANNELS = 5
-
 #: Cloud texel channels: premultiplied linear RGB after haze and fog, opacity, and the range
 #: (metres) at which the texel's ray enters cloud (+inf where it meets none).
 CLOUD_CHANNELS = 5
 
-
 class VoxelPages(NamedTuple):
-    """The terrain database as the column scan reads it (scene/terrain/database.py).
+    """The terrain database as the cast reads it (scene/terrain/database.py).
 
     Attributes:
         z: (P, page, page, 4) float32 voxel corner heights, metres above the database origin.
@@ -76,39 +69,53 @@ class VoxelPages(NamedTuple):
     lut: np.ndarray
 
 
-class ColumnGrid(NamedTuple):
-    """The pre-image grid as the column scan walks it (terrain.PreimageGrid). Every visible
-    surface segment's call takes it, so it holds only what those calls read (which rows each
-    column scans is in ScanLimits).
+class LineFan(NamedTuple):
+    """The lines of the terrain cast (cast.line_fan): screen lines through the vertical
+    vanishing point V (the image of the nadir or the zenith), each the image of one vertical
+    half-plane through the eye.
+
+    The screen is split into four wedges around V by the diagonals through it; a wedge's lines
+    are aimed at the pixel centres of the screen edge it faces, one a pixel, and stepped one
+    pixel row (UP, DOWN) or column (LEFT, RIGHT) at a time from that edge towards V. In a
+    wedge's own coordinates (p along the aimed edge, q towards it, both in pixels: UP p = x,
+    q = -y; DOWN p = x, q = y; LEFT p = y, q = -x; RIGHT p = y, q = x) line i passes through
+    (aim[i], qa) and V, and at q its p is aim[i] + (q - qa) slope[i].
 
     Attributes:
-        phi_lo: azimuth of column 0's left edge; column j is centred on phi_lo + (j + 1/2)
-            dphi.
-        dphi: column width (azimuth).
-        ncols: columns.
-        theta0: elevation of row 0's lower edge; row i spans theta0 + i dtheta .. + dtheta.
-        dtheta: row height (elevation).
-        nrows: rows.
-        row_cs: (nrows, 2) float64 cosine and sine of each row's centre elevation.
-        top_cs: (nrows, 2) float64 cosine and sine of each row's top edge.
+        wedge: (L,) int64 the wedge of each line (_cast_kernels.UP, DOWN, LEFT, RIGHT).
+        aim: (L,) float64 p of the aimed point.
+        slope: (L,) float64 dp / dq along the line.
+        prev, next: (L,) bool the line before (after) it in the arrays is its wedge's
+            neighbour on the low (high) p side: of the lines whose points fall in one pixel,
+            the one nearest its centre takes it.
+        sin_phi, cos_phi: (L,) float64 sine and cosine of the line's azimuth.
+        qa: (4,) float64 q of each wedge's aimed edge (pixel centres).
+        nmajor, nminor: (4,) int64 pixels along q and along p of each wedge.
+        vp, vq: (4,) float64 V in each wedge's coordinates, homogeneous with weight vw.
+        vw: V's homogeneous weight (>= 0; 0: V at infinity, the lines parallel).
+        nadir: V is the nadir's image (elevation grows away from V), else the zenith's.
     """
 
-    phi_lo: float
-    dphi: float
-    ncols: int
-    theta0: float
-    dtheta: float
-    nrows: int
-    row_cs: np.ndarray
-    top_cs: np.ndarray
+    wedge: np.ndarray
+    aim: np.ndarray
+    slope: np.ndarray
+    prev: np.ndarray
+    next: np.ndarray
+    sin_phi: np.ndarray
+    cos_phi: np.ndarray
+    qa: np.ndarray
+    nmajor: np.ndarray
+    nminor: np.ndarray
+    vp: np.ndarray
+    vq: np.ndarray
+    vw: float
+    nadir: bool
 
 
 class ScanLimits(NamedTuple):
-    """Where the column scans start and how far they go.
+    """Where the line scans start and how far they go.
 
     Attributes:
-        first_row: (MAX_SKIP + 1,) int64 the lowest row a column whose index has k trailing
-            zero bits scans (towards the nadir only every 2**k-th column is needed).
         eye: (3,) float64 eye position relative to the database origin, metres (kept above the
             surface, terrain.MIN_CLEARANCE_M).
         r_switch: (levels,) float64 ground range where level L + 1 takes over from level L,
@@ -117,20 +124,48 @@ class ScanLimits(NamedTuple):
             fog), metres.
     """
 
-    first_row: np.ndarray
     eye: np.ndarray
     r_switch: np.ndarray
     r_far: float
 
 
-class Preimage(NamedTuple):
-    """The zero-roll pre-image as the warp reads it.
+class CastPixels(NamedTuple):
+    """What the cast leaves per pixel for the per-sample depth (_depth_kernels).
 
     Attributes:
-        texels: (ncols, nrows, PRE_CHANNELS) float32 (the PRE_* channels); a (1, 1,
-            PRE_CHANNELS) zero stand-in covering the whole grid when there is no terrain.
+        pixels: (H, W, 2) float32 per pixel the share the terrain covers, and 1/z (eye
+            depth, metres) of the terrain there (0 where the terrain never reached; at a
+            partly covered pixel, and the first uncovered one above a line's last surface,
+            that surface continued): one array, so a pixel's two values share a cache line.
+    """
+
+    pixels: np.ndarray
+
+
+class SkyTable(NamedTuple):
+    """The sky and the earth plane through the air, by elevation (_sky_kernels).
+
+    Attributes:
+        tabulated: the air depends on elevation alone (no fog, or fog strata along the
+            vertical), so the tables hold it; else the colours are computed per pixel.
+        sky, earth: (SKY_TABLE_SIZE, 3) float64 linear colour at elevation sines -1 .. 1
+            (one-row stand-ins when not tabulated).
+    """
+
+    tabulated: bool
+    sky: np.ndarray
+    earth: np.ndarray
+
+
+class CloudImage(NamedTuple):
+    """The coarse cloud image (clouds.scan_clouds) as cloud_over_kernel lays it over the
+    background.
+
+    Attributes:
+        texels: (ncols, nrows, CLOUD_CHANNELS) float32.
         full: every azimuth is seen (the view holds the nadir or the zenith): columns wrap.
-        phi_lo: azimuth of column 0's left edge.
+        phi_lo: azimuth of column 0's left edge; column j is centred on phi_lo + (j + 1/2)
+            dphi.
         dphi: column width (azimuth).
         theta0: elevation of row 0's lower edge.
         dtheta: row height (elevation).
@@ -146,39 +181,8 @@ class Preimage(NamedTuple):
     span: float
 
 
-class SkyHaze(NamedTuple):
-    """The haze of the sky (range infinite), which depends on elevation alone.
-
-    Attributes:
-        table: (n,) float64 haze share at elevations theta0 + (i + 1/2) dtheta (one zero
-            without haze).
-        theta0: elevation of entry 0's lower edge.
-        dtheta: elevation step between entries.
-    """
-
-    table: np.ndarray
-    theta0: float
-    dtheta: float
-
-
-class CloudImage(NamedTuple):
-    """The coarse cloud pre-image (clouds.scan_clouds) as the warp lays it over the background.
-
-    Attributes:
-        on: the scene has clouds.
-        texels: (ncols, nrows, CLOUD_CHANNELS) float32; a (1, 1, CLOUD_CHANNELS) zero stand-in
-            without clouds.
-        col_ratio, row_ratio: pre-image texels per cloud texel along the columns and the rows.
-    """
-
-    on: bool
-    texels: np.ndarray
-    col_ratio: float
-    row_ratio: float
-
-
 class SampleDepth(NamedTuple):
-    """Where the warp writes per-sample terrain depth (Background.inv_z), and how.
+    """Where per-sample terrain depth (Background.inv_z) is wanted, and how.
 
     Attributes:
         margin_m: the scene's polygon margin: the terrain is pushed back by this much height,
@@ -194,7 +198,7 @@ class SampleDepth(NamedTuple):
 
 
 class BackgroundArrays(NamedTuple):
-    """The arrays the warp fills (Background's rgb, inv_z, range_m and cloud).
+    """The arrays the stage fills (Background's rgb, inv_z, range_m and cloud).
 
     Attributes:
         rgb: (H, W, 3) float32.

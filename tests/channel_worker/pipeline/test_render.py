@@ -164,7 +164,7 @@ def test_a_full_translucent_store_drops_the_farthest_and_says_so(make_scene, box
 
 @pytest.mark.parametrize("renderer", ["subarea", "scanline"])
 def test_two_threads_draw_what_one_draws(renderer):
-    """Threads share out interleaved rows of sub-areas, warp blocks, bands and terrain columns
+    """Threads share out interleaved rows of sub-areas, cloud blocks, bands and terrain lines
     (jit.lanes); every pixel is still computed by one thread with the same arithmetic, so the
     demo scene (terrain, clouds, fog, haze, the airfield; the scan-line renderer draws the
     airfield alone) comes out bit for bit the same."""

@@ -45,13 +45,13 @@ def test_frame_report_through_the_proto_keeps_stage_order():
 
 def test_parts_of_a_stage_are_reported_apart_from_the_total():
     r = FrameReport({"background": 0.01, "visibility": 0.002}, {},
-                    {"background.scan": 0.006, "background.warp": 0.0035})
+                    {"background.cast": 0.006, "background.depth": 0.0035})
     assert r.total_seconds == pytest.approx(0.012)  # parts lie inside their stage
-    assert r.to_dict()["parts_ms"] == {"background.scan": pytest.approx(6.0),
-                                       "background.warp": pytest.approx(3.5)}
-    assert "parts: background.scan 6.00 background.warp 3.50" in r.format()
+    assert r.to_dict()["parts_ms"] == {"background.cast": pytest.approx(6.0),
+                                       "background.depth": pytest.approx(3.5)}
+    assert "parts: background.cast 6.00 background.depth 3.50" in r.format()
     back = report_from_proto(report_to_proto(r))
-    assert list(back.part_seconds) == ["background.scan", "background.warp"]
+    assert list(back.part_seconds) == ["background.cast", "background.depth"]
     assert back.part_seconds == r.part_seconds
     r.clear()
     assert not r.part_seconds

@@ -189,7 +189,7 @@ def _sky_haze_error(db, eye: Eyepoint) -> float:
 
 @pytest.mark.parametrize("pitch", [0.0, 40.0, 90.0])
 def test_the_sky_is_hazed_by_elevation_under_terrain(pitch):
-    # A small terrain out of sight behind the eye makes the stage scan a real pre-image.
+    # A small terrain out of sight behind the eye makes the stage cast its lines.
     from channel_worker.testing.terrain_reference import single_level_database
 
     from ..terrain_fixtures import flat_nodes

@@ -47,13 +47,15 @@ from ..terrain_fixtures import (
 CHANNEL = ChannelSpec.symmetric("c", 160, 120, 60.0)
 #: Wide and off-axis: 120 degrees across, 35 below and 10 above the axis, turned 35 right.
 WIDE = ChannelSpec("wide", 200, 100, -60.0, 60.0, -35.0, 10.0, yaw_deg=35.0)
+#: The default rig's right channel: 60 x 45 degrees, turned 60 degrees right.
+YAWED = ChannelSpec("right", 160, 120, -30.0, 30.0, -22.5, 22.5, yaw_deg=60.0)
 
 # Bounds of the accuracy tests, from measurement on the views below (default settings,
 # 2026-11 kernels) with a margin of about 2 to 3 times the worst case:
 #   colour mean abs error per pixel (linear): measured <= 0.0013 (wide channel)  -> bound 0.004
 #   its 99th percentile:                      measured <= 0.022  (wide channel)  -> bound 0.05
 #   samples whose coverage disagrees:         measured <= 0.0008 (wide channel)  -> bound 0.003
-#     (silhouette samples: the reference point-samples, the renderer resamples the pre-image)
+#     (silhouette samples: the reference point-samples, the renderer interpolates coverage)
 #   pixel-centre range, median rel. error:    measured <= 0.006  (grazing)       -> bound 0.015
 #   pixel-centre range, 95th pct rel. error:  measured <= 0.016  (grazing)       -> bound 0.04
 COLOUR_MEAN, COLOUR_P99, COVERAGE, RANGE_MEDIAN, RANGE_P95 = 0.004, 0.05, 0.003, 0.015, 0.04
@@ -79,10 +81,12 @@ def _grazing_eye(*, downhill: bool = False) -> Eyepoint:
 
 HILLS_VIEWS = {
     "level": (CHANNEL, lambda: Eyepoint.of(0.0, -2400.0, 320.0, 20.0, 0.0, 0.0)),
+    "roll30": (CHANNEL, lambda: Eyepoint.of(0.0, -2400.0, 320.0, 20.0, -10.0, 30.0)),
     "roll90": (CHANNEL, lambda: Eyepoint.of(0.0, -2400.0, 320.0, 20.0, -10.0, 90.0)),
     "roll180": (CHANNEL, lambda: Eyepoint.of(0.0, -2400.0, 320.0, 20.0, -10.0, 180.0)),
     "straight-down": (CHANNEL, lambda: Eyepoint.of(100.0, 200.0, 1500.0, 30.0, -90.0, 0.0)),
     "straight-up": (CHANNEL, lambda: Eyepoint.of(100.0, 200.0, 300.0, 30.0, 90.0, 0.0)),
+    "yawed-60": (YAWED, lambda: Eyepoint.of(0.0, -2400.0, 320.0, 20.0, -5.0, 10.0)),
     "wide-off-axis": (WIDE, lambda: Eyepoint.of(-1000.0, -2000.0, 350.0, 10.0, -5.0, 0.0)),
     "grazing-uphill": (CHANNEL, lambda: _grazing_eye()),
     "grazing-downhill": (CHANNEL, lambda: _grazing_eye(downhill=True)),
@@ -161,9 +165,9 @@ def test_no_voxel_is_missed(i, j, tall, distance, bearing, height, aim_h, aim_p,
     renderer shows spike colour at that pixel or a neighbour.
 
     The spike is kept within 1400 m, where its 10 m voxel is at least one pixel wide
-    (60 degrees / 160 px = 6.5 mrad): the pre-image has one azimuth column per pixel, so a
-    voxel narrower than a pixel in azimuth can fall between two columns (JP H07-76990 samples
-    one ray per column too); the level selection is there to keep voxels a pixel wide or more.
+    (60 degrees / 160 px = 6.5 mrad): the cast has one line per pixel across, so a voxel
+    narrower than a pixel in azimuth can fall between two lines (JP H07-76990 samples one ray
+    per column too); the level selection is there to keep voxels a pixel wide or more.
     """
     t = _spike_db(i, j, tall)
     sx, sy = (i + 0.5) * SPIKE_SPACING, (j + 0.5) * SPIKE_SPACING
@@ -426,14 +430,14 @@ def test_a_database_1000_km_away_renders_like_one_at_the_origin():
 @pytest.mark.parametrize("pitch", [0.0, -20.0])
 def test_rays_along_grid_lines(heading, pitch):
     # The eye on a grid line crossing (x and y multiples of 40 m from the origin) and the
-    # central pre-image column exactly along a grid line.
+    # central cast line exactly along a grid line.
     db = scene(terrain=hills_db())
     x, y = 320.0, -1600.0
     assert (x - HILLS_ORIGIN[0]) % HILLS_SPACING == 0 and (y - HILLS_ORIGIN[1]) % HILLS_SPACING == 0
     c = compare(db, make_view(CHANNEL, Eyepoint.of(x, y, 400.0, heading, pitch, 0.0)))
     assert_accurate(c)  # includes: no NaN or infinity
     # No gap: every image column holds as much terrain as the reference's (measured <= 0.005;
-    # a pre-image column lost along a grid line makes two image columns about half empty).
+    # a line lost along a grid line leaves an image column empty).
     assert c.column_gap <= 0.03, str(c)
 
 
@@ -468,10 +472,11 @@ def test_an_empty_frustum_above_the_horizon_visits_no_voxels():
     assert not (above.inv_z > 0).any()
     # Below the highest hill, looking 60 degrees up: the scan stops where the highest point of
     # the database can no longer rise into the lowest row (measured 2,973 voxels for 528
-    # columns, about 6 per column, against 15,734 looking 20 degrees down).
+    # columns, about 6 per column, against 15,734 looking 20 degrees down; the same bound holds
+    # per line of the cast).
     low = looking_up(150.0, 89.0)
     assert low.stats["terrain_eye_clamped"] == 0
-    assert low.stats["terrain_voxels"] <= 10 * low.stats["terrain_columns"]
+    assert low.stats["terrain_voxels"] <= 10 * low.stats["terrain_lines"]
     assert not (low.inv_z > 0).any()
 
 

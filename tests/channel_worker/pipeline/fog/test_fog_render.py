@@ -266,7 +266,8 @@ def test_terrain_is_fogged_by_its_range():
                     for d, r in zip(dirs[covered], a.range_m[covered], strict=True)])
     t = np.exp(-tau)[:, None]
     want = t * a.rgb[covered] + (1 - t) * linear(FOG)
-    # The pre-image texel is fogged at its centre's range and resampled: measured 8e-5.
+    # A terrain pixel is fogged at the range of its line's point (within half a pixel of its
+    # centre).
     assert np.abs(b.rgb[covered] - want).max() < 0.001
     # And it is fog, not nothing: the far field differs from the clear one.
     assert np.abs(b.rgb[covered] - a.rgb[covered]).max() > 0.2
@@ -339,7 +340,7 @@ def test_scene_fog_errors_name_the_field_and_value(fog, field, value):
 
 @pytest.mark.parametrize("pitch, roll", [(0.0, 0.0), (-35.0, 20.0), (60.0, 180.0)])
 def test_sky_and_earth_alike_with_and_without_terrain(pitch, roll):
-    """Fog alone paints the sky and earth with its own per-pixel kernel; under terrain the warp
+    """Fog alone paints the sky and earth with its own per-pixel kernel; under terrain the cast
     paints them. Both are the same fog: a terrain out of sight (behind the eye) changes
     nothing in front."""
     from channel_worker.testing.terrain_reference import single_level_database
