@@ -78,10 +78,10 @@ def render_background(database: Database, view: View, frame: FrameConstants,
     if database.fog is not None:
         stats["fog_table_coarsened"] = int(air[F_COARSENED])
     sky = sky_table(frame, air)
-    # The per-sample depth is zero wherever no terrain is: calloc'd pages, zeroed on touch.
-    out = BackgroundArrays(np.empty((h, w, 3), np.float32), np.zeros((h, w, s), np.float32),
+    out = BackgroundArrays(np.empty((h, w, 3), np.float32), np.empty((h, w, s), np.float32),
                            np.empty((h, w), np.float32), no_cloud())
     if terrain is None:
+        out.inv_z.fill(0.0)  # nothing hides a polygon
         sky_earth_kernel(frame, air, sky, out.rgb, out.range_m)
         t1 = t2 = time.perf_counter()
     else:

@@ -76,9 +76,12 @@ def line_fan(frame: FrameConstants) -> LineFan:
         # Aimed at: the border pixels where the wedge's lines leave the screen (moving on
         # away from V leaves it: the edge the wedge faces, and the side edges on V's far
         # side), in the wedge or within _SPARE_LINES pixels of it across a diagonal.
-        scale = vw if vw > 0.0 else max(abs(vp[wedge]), abs(vq[wedge]))
+        # (With V at infinity every pixel has one direction: a wedge holds all or none.) A
+        # border pixel all but on V's own row or column is left out: its slope would
+        # overflow, and the lines beside it reach that pixel.
         far = _leaves_screen(bx, by, vx, vy, vw, w, h)
-        keep = far & (dq > 0.0) & (dq + _SPARE_LINES * scale >= np.abs(dp))
+        tiny = 1e-9 * max(vw, abs(vp[wedge]), abs(vq[wedge]))
+        keep = far & (dq > tiny) & (dq + _SPARE_LINES * vw >= np.abs(dp))
         if not keep.any():
             continue
         p_c, q_c, dp, dq = p_c[keep], q_c[keep], dp[keep], dq[keep]
