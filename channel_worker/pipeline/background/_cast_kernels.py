@@ -43,11 +43,16 @@ _R1, _Z1, _R2, _Z2 = 6, 7, 8, 9  # the last segment emitted
 _TANMAX = 10  # tangent of the highest elevation seen so far (the line's horizon)
 _SMAX = 11  # the horizon's position along the line (steps)
 _STATE = 12
-# The line's buffer, a row per step: premultiplied colour after haze and fog, coverage, the
-# inverse range (1/metres) at the pixel's centre, whether the line owns the step's pixel, and
-# where along the line (steps) the pixel's centre lies.
-_B_R, _B_G, _B_B, _B_A, _B_IR, _B_OWN, _B_S = 0, 1, 2, 3, 4, 5, 6
-_BUF = 7
+# The line's buffer, a row per step: premultiplied colour after haze and fog, coverage, and
+# 1/z (eye depth, metres) of the surface at the step's centre.
+_B_R, _B_G, _B_B, _B_A, _B_IZ = 0, 1, 2, 3, 4
+_BUF = 5
+# A line's record in its lane (cast_kernel): the steps it walks, the steps it owns, its steps,
+# and its rays (_Line's h0, h1, z0, z1).
+_M_LO, _M_HI, _M_FIRST, _M_LAST, _M_N, _M_H0, _M_H1, _M_Z0, _M_Z1 = 0, 1, 2, 3, 4, 5, 6, 7, 8
+_META = 9
+#: Lines per block: a lane casts a block's lines in order, and the lines on either side of it.
+_BLOCK = 32
 
 #: Depth of the skirt down the database's edge (metres): deep enough to reach below any
 #: horizon the scan starts from.
@@ -196,52 +201,47 @@ def _colour_at(colours, paint, t):
 
 @borrowing
 def _finish_step(st, ln, air, buf):
-    """Keep the current step's terrain in the line's buffer (if the line owns its pixel) from
-    the accumulators in st, through the haze and fog, and start the next step."""
+    """Keep the current step's terrain in the line's buffer from the accumulators in st,
+    through the haze and fog, and start the next step."""
     row = int(st[_ROW])
-    if buf[row, _B_OWN] != 0.0:
-        w = st[_AW]
-        r = st[_AR]
-        g = st[_AG]
-        b = st[_AB]
-        ir = st[_IR]
-        if w > 0.0:
-            seg = (st[_R1], st[_Z1], st[_R2], st[_Z2])
-            h, v = _direction(ln, buf[row, _B_S])
-            if ir == 0.0:
-                # The centre ray is not on the surface (the step's surface ends below it):
-                # the signed inverse range along it to the last segment's line continued
-                # stands for the step (negative where it would meet the line behind the eye),
-                # so the per-sample depth interpolates a partly covered pixel at an edge or
-                # crest as well as whole ones.
-                ir = _inverse_range_on_line(h, v, seg)
-            if air[0] != 0.0 or air[F_ON] != 0.0:
-                # The surface's range at the step's centre, or (its centre uncovered) that of
-                # the last segment's far end.
-                if ir > 0.0:
-                    rng = 1.0 / ir  # guard: ir > 0
-                else:
-                    rng = math.sqrt(seg[2] * seg[2] + seg[3] * seg[3])
-                norm = math.sqrt(h * h + v * v)
-                sn = v / norm  # guard: _direction never returns (0, 0)
-                if air[0] != 0.0:
-                    hz = haze_amount(air, rng, sn)
-                    # Premultiplied: the haze covers the share w of the pixel the terrain
-                    # covers.
-                    r = r * (1.0 - hz) + air[3] * hz * w
-                    g = g * (1.0 - hz) + air[4] * hz * w
-                    b = b * (1.0 - hz) + air[5] * hz * w
-                if air[F_ON] != 0.0:
-                    cos_ax = ln.axh * h / norm + air[F_WORLD_AXIS + 2] * sn
-                    t = math.exp(-fog_depth(air, rng, cos_ax))
-                    r = t * r + (1.0 - t) * air[F_RGB] * w
-                    g = t * g + (1.0 - t) * air[F_RGB + 1] * w
-                    b = t * b + (1.0 - t) * air[F_RGB + 2] * w
-        buf[row, _B_R] = r
-        buf[row, _B_G] = g
-        buf[row, _B_B] = b
-        buf[row, _B_A] = min(w, 1.0)
-        buf[row, _B_IR] = ir
+    w = st[_AW]
+    r = st[_AR]
+    g = st[_AG]
+    b = st[_AB]
+    ir = st[_IR]
+    h, v = _direction(ln, row + 0.5)
+    if w > 0.0:
+        seg = (st[_R1], st[_Z1], st[_R2], st[_Z2])
+        if ir == 0.0:
+            # The centre ray is not on the surface (the step's surface ends below it): the
+            # signed inverse range along it to the last segment's line continued stands for
+            # the step (negative where it would meet the line behind the eye), so a partly
+            # covered pixel at an edge or crest interpolates as well as whole ones.
+            ir = _inverse_range_on_line(h, v, seg)
+        if air[0] != 0.0 or air[F_ON] != 0.0:
+            # The surface's range at the step's centre, or that of the last segment's far end.
+            rng = 1.0 / ir if ir > 0.0 else math.sqrt(seg[2] * seg[2] + seg[3] * seg[3])
+            norm = math.sqrt(h * h + v * v)
+            sn = v / norm  # guard: _direction never returns (0, 0)
+            if air[0] != 0.0:
+                hz = haze_amount(air, rng, sn)
+                # Premultiplied: the haze covers the share w of the pixel the terrain covers.
+                r = r * (1.0 - hz) + air[3] * hz * w
+                g = g * (1.0 - hz) + air[4] * hz * w
+                b = b * (1.0 - hz) + air[5] * hz * w
+            if air[F_ON] != 0.0:
+                cos_ax = ln.axh * h / norm + air[F_WORLD_AXIS + 2] * sn
+                t = math.exp(-fog_depth(air, rng, cos_ax))
+                r = t * r + (1.0 - t) * air[F_RGB] * w
+                g = t * g + (1.0 - t) * air[F_RGB + 1] * w
+                b = t * b + (1.0 - t) * air[F_RGB + 2] * w
+    buf[row, _B_R] = r
+    buf[row, _B_G] = g
+    buf[row, _B_B] = b
+    buf[row, _B_A] = min(w, 1.0)
+    # 1/z = |(tx, ty, 1)| / range: affine across a plane in screen space, so the pixels
+    # between two lines and the samples between pixels interpolate it.
+    buf[row, _B_IZ] = math.sqrt(h * h + v * v) * ir
     st[_ROW] = row + 1
     st[_AR] = 0.0
     st[_AG] = 0.0
@@ -288,7 +288,7 @@ def _emit(st, ln, air, buf, colours, a, b, tb, seg, paint, c_a, c_b):
         st[_AG] += w * 0.5 * (c_a[1] + c_e[1])
         st[_AB] += w * 0.5 * (c_a[2] + c_e[2])
         st[_AW] += w
-        centre = buf[row, _B_S]
+        centre = top - 0.5
         if a <= centre < e:
             hh, vv = _direction(ln, centre)
             st[_IR] = _inverse_range_at(hh, vv, seg)
@@ -410,34 +410,54 @@ def cast_kernel(pages, fan, limits, air, frame, sky, out, aux, visits, threads):
         threads: numba.get_num_threads() (jit.lanes).
     """
     n_lines = fan.aim.shape[0]
-    # Lines interleaved over the threads (jit.lanes): sky lines and ground lines differ in
-    # cost, and neighbouring lines cost alike.
-    n_lanes = lanes(threads, n_lines)
+    # Blocks of lines interleaved over the threads (jit.lanes): sky lines and ground lines
+    # differ in cost, and neighbouring lines cost alike. A lane casts a block's lines in
+    # order and the line on either side of the block, keeping three lines at a time: a pixel
+    # is written once the lines on both sides of its centre are cast.
+    n_blocks = (n_lines + _BLOCK - 1) // _BLOCK
+    n_lanes = lanes(threads, n_blocks)
     size = max(frame.width, frame.height) + 1
     for lane in prange(n_lanes):
         st = np.empty(_STATE)
-        own = np.empty((size, 2), np.int64)
-        buf = np.empty((size, _BUF))
-        for i in range(lane, n_lines, n_lanes):
-            visits[i] = _line(i, st, own, buf, pages, fan, limits, air, frame, sky, out, aux)
+        own = np.empty((3, size, 2), np.int64)
+        buf = np.empty((3, size, _BUF))
+        meta = np.empty((3, _META))
+        for blk in range(lane, n_blocks, n_lanes):
+            start = blk * _BLOCK
+            end = min(start + _BLOCK, n_lines)
+            lo = start - 1 if fan.prev[start] else start
+            hi = end if fan.next[end - 1] else end - 1
+            for j in range(lo, hi + 1):
+                used = _line(j, st, own[j % 3], buf[j % 3], meta[j % 3], pages, fan, limits,
+                             air, frame)
+                if start <= j < end:
+                    visits[j] = used
+                if start <= j - 1 < end:
+                    _write(j - 1, fan, own, buf, meta, frame, air, sky, out, aux)
+            if hi == end - 1:
+                _write(end - 1, fan, own, buf, meta, frame, air, sky, out, aux)
 
 
 @borrowing
-def _line(i, st, own, buf, pages, fan, limits, air, frame, sky, out, aux):
-    """Line i of cast_kernel, with st as its scan state, own as its steps' pixels and buf as
-    their terrain; returns the voxels visited."""
-    first_k, last_k, n = own_steps(fan, i, frame.width, frame.height, own, buf)
+def _line(i, st, own, buf, meta, pages, fan, limits, air, frame):
+    """Cast line i of cast_kernel into its buffer buf, its steps' pixels into own and its
+    record into meta, with st as its scan state; returns the voxels visited."""
+    lo_k, hi_k, first_k, last_k, n = own_steps(fan, i, frame.width, frame.height, own)
+    meta[_M_LO] = lo_k
+    meta[_M_HI] = hi_k
+    meta[_M_FIRST] = first_k
+    meta[_M_LAST] = last_k
+    meta[_M_N] = n
+    if lo_k < 0:
+        return 0
     wedge = fan.wedge[i]
     qa = fan.qa[wedge]
     slope = fan.slope[i]
     aim = fan.aim[i]
-    if first_k < 0:
-        return 0
-    last = n - 1
     # The line's rays: screen point (p, q) of the wedge at s (q = qa - m at step m's centre),
     # its eye ray (tx, ty, 1) and world direction, all affine in s.
     if fan.nadir:
-        q0 = qa - last - 0.5
+        q0 = qa - (n - 1) - 0.5
         dq_ds = 1.0
     else:
         q0 = qa + 0.5
@@ -450,86 +470,122 @@ def _line(i, st, own, buf, pages, fan, limits, air, frame, sky, out, aux):
     z0 = wa[2]
     h1 = (wb[0] * sphi + wb[1] * cphi) - h0
     z1 = wb[2] - z0
-    h_lo = h0
     h_hi = h0 + h1 * n
     # A tiny horizontal component relative to the ray is the vanishing point itself.
-    tan_lo = (z0 / h_lo) if h_lo > 1e-12 * (abs(h_lo) + abs(z0)) else -math.inf
+    tan_lo = (z0 / h0) if h0 > 1e-12 * (abs(h0) + abs(z0)) else -math.inf
     z_hi = z0 + z1 * n
     tan_hi = (z_hi / h_hi) if h_hi > 1e-12 * (abs(h_hi) + abs(z_hi)) else math.inf
     axh = air[F_WORLD_AXIS] * sphi + air[F_WORLD_AXIS + 1] * cphi
     ln = _Line(h0, h1, z0, z1, n, tan_lo, tan_hi, axh)
     for q in range(_STATE):
         st[q] = 0.0
-    st[_ROW] = first_k
-    hh, vv = _direction(ln, float(first_k))
-    tan_start = _tan_of(hh, vv) if first_k > 0 else tan_lo
+    st[_ROW] = lo_k
+    hh, vv = _direction(ln, float(lo_k))
+    tan_start = _tan_of(hh, vv) if lo_k > 0 else tan_lo
     st[_TANMAX] = tan_start
-    st[_SMAX] = float(first_k)
-    used = _walk(st, ln, buf, last_k, sphi, cphi, pages, limits, tan_start, air)
+    st[_SMAX] = float(lo_k)
+    used = _walk(st, ln, buf, hi_k, sphi, cphi, pages, limits, tan_start, air)
     # The step the scan stopped in holds what covered it so far (a silhouette).
-    if int(st[_ROW]) <= last_k and st[_AW] > 0.0:
+    if int(st[_ROW]) <= hi_k and st[_AW] > 0.0:
         _finish_step(st, ln, air, buf)
-    _write(st, ln, own, buf, first_k, last_k, frame, air, sky, out, aux)
+    # Steps the scan never reached see no terrain. The first of them keeps the last surface's
+    # depth continued (with no coverage): the pixels and samples beside it interpolate
+    # between it and the last covered one, exact for planar ground up to the edge.
+    row = int(st[_ROW])
+    cont = st[_R1] != 0.0 or st[_R2] != 0.0
+    for k in range(row, hi_k + 1):
+        for c in range(_BUF):
+            buf[k, c] = 0.0
+        if cont and k == row:
+            hh, vv = _direction(ln, k + 0.5)
+            buf[k, _B_IZ] = math.sqrt(hh * hh + vv * vv) * _inverse_range_on_line(
+                hh, vv, (st[_R1], st[_Z1], st[_R2], st[_Z2]))
     return used
 
 
 @borrowing
-def _write(st, ln, own, buf, first_k, last_k, frame, air, sky, out, aux):
-    """The line's pixels from its buffer: the terrain over the sky or earth plane. Steps the
-    scan never reached see the sky or the earth plane alone; the first of them keeps the last
-    surface's inverse range continued (with no coverage), so the per-sample depth
-    interpolates between it and the last covered pixel, exact for planar ground up to the
-    edge."""
-    row = int(st[_ROW])
-    cont = st[_R1] != 0.0 or st[_R2] != 0.0
+def _write(i, fan, own, buf, meta, frame, air, sky, out, aux):
+    """Line i's pixels (cast_kernel): each between the two lines on either side of its
+    centre (line i and a neighbour, both cast), interpolated linearly across them (to the
+    pixel's own azimuth: its colour, coverage and 1/z, which is affine across a plane), over
+    the sky or earth plane at its own centre."""
+    a = i % 3
+    first_k = int(meta[a, _M_FIRST])
+    if first_k < 0:
+        return
+    last_k = int(meta[a, _M_LAST])
+    n = int(meta[a, _M_N])
+    wedge = fan.wedge[i]
+    aim = fan.aim[i]
+    slope = fan.slope[i]
+    mapping = frame.mapping
+    dz = frame.dz_row
     for k in range(first_k, last_k + 1):
-        x = own[k, 0]
+        x = own[a, k, 0]
         if x < 0:
             continue
-        y = own[k, 1]
-        r = 0.0
-        g = 0.0
-        b = 0.0
-        w = 0.0
-        ir = 0.0
-        hh, vv = _direction(ln, buf[k, _B_S])
-        if k < row:
-            r = buf[k, _B_R]
-            g = buf[k, _B_G]
-            b = buf[k, _B_B]
-            w = buf[k, _B_A]
-            ir = buf[k, _B_IR]
-        elif k == row and cont:
-            ir = _inverse_range_on_line(hh, vv, (st[_R1], st[_Z1], st[_R2], st[_Z2]))
-        # |(tx, ty, 1)| of the line's point in the pixel: the eye ray's length per unit depth.
-        norm = math.sqrt(hh * hh + vv * vv)
+        y = own[a, k, 1]
+        m = (n - 1 - k) if fan.nadir else k
+        p = aim - m * slope
+        centre = (x if wedge <= DOWN else y) + 0.5
+        r = buf[a, k, _B_R]
+        g = buf[a, k, _B_G]
+        b = buf[a, k, _B_B]
+        w = buf[a, k, _B_A]
+        iz = buf[a, k, _B_IZ]
+        # The neighbour on the other side of the centre, if that side has one.
+        j = -1
+        if centre < p and fan.prev[i]:
+            j = i - 1
+        elif centre > p and fan.next[i]:
+            j = i + 1
+        if j >= 0:
+            c = j % 3
+            if meta[c, _M_LO] <= k <= meta[c, _M_HI]:
+                pj = fan.aim[j] - m * fan.slope[j]
+                # Guard: the neighbour lies on the other side of the centre, so pj != p.
+                t = (centre - p) / (pj - p)
+                r += t * (buf[c, k, _B_R] - r)
+                g += t * (buf[c, k, _B_G] - g)
+                b += t * (buf[c, k, _B_B] - b)
+                w += t * (buf[c, k, _B_A] - w)
+                izj = buf[c, k, _B_IZ]
+                # A line the terrain never reached at this step holds 0: the other's depth.
+                if iz == 0.0:
+                    iz = izj
+                elif izj != 0.0:
+                    iz += t * (izj - iz)
+        tx = (x + 0.5 - mapping[1]) / mapping[0]  # guard: scales are nonzero
+        ty = (y + 0.5 - mapping[3]) / mapping[2]
+        norm = math.sqrt(tx * tx + ty * ty + 1.0)
         nearest = math.inf
         if w < 1.0:
-            br, bg, bb, nearest = backdrop_along(frame, air, sky, x, y, norm, vv)
+            br, bg, bb, nearest = backdrop_along(frame, air, sky, x, y, norm,
+                                                 dz[0] * tx + dz[1] * ty + dz[2])
             keep = 1.0 - w
             r += keep * br
             g += keep * bg
             b += keep * bb
-        if w > 0.0 and ir > 0.0:
-            nearest = min(nearest, 1.0 / ir)  # guard: ir > 0
+        if w > 0.0 and iz > 0.0:
+            nearest = min(nearest, norm / iz)  # guard: iz > 0
         out.rgb[y, x, 0] = r
         out.rgb[y, x, 1] = g
         out.rgb[y, x, 2] = b
         out.range_m[y, x] = nearest
-        # Coverage and 1/z = |ray| / range (affine across a plane in screen space: the
-        # per-sample depth interpolates it, _depth_kernels).
         aux.pixels[y, x, 0] = w
-        aux.pixels[y, x, 1] = norm * ir
+        aux.pixels[y, x, 1] = iz
 
 
 @borrowing
-def own_steps(fan, i, width, height, own, buf):
+def own_steps(fan, i, width, height, own):
     """Which pixel each step of line i owns (fan.py): the pixel its point falls in, if the
     pixel's centre lies in the wedge and no neighbouring line's point in the pixel is nearer
     its centre;
-    own[k] = (x, y) or (-1, .), buf[k, _B_OWN] 1 or 0, for steps k in order of elevation
-    (away from the vanishing point when it is the nadir's image). Returns the first and last
-    step owned (-1, -1 if none) and the line's steps n."""
+    own[k] = (x, y) or (-1, .), for steps k in order of elevation (away from the vanishing
+    point when it is the nadir's image). Returns the first and last step the line must be
+    walked over (where its point lies within a pixel of the screen: the pixels beside it
+    interpolate it), the first and last step it owns (-1 if none of either) and its steps
+    n."""
     wedge = fan.wedge[i]
     qa = fan.qa[wedge]
     vp = fan.vp[wedge]
@@ -552,16 +608,22 @@ def own_steps(fan, i, width, height, own, buf):
     if vw > 0.0:
         last = min(last, int(math.floor(qa - vq / vw)))  # guard: vw > 0
     if last < 0:
-        return -1, -1, 0
+        return -1, -1, -1, -1, 0
     n = last + 1
+    lo_k = -1
+    hi_k = -1
     first_k = -1
     last_k = -1
     for m in range(n):
         k = (n - 1 - m) if fan.nadir else m
         own[k, 0] = -1
-        buf[k, _B_OWN] = 0.0
         q = qa - m
         p = aim - m * slope
+        if -1.0 < p < nmin + 1.0:
+            if lo_k < 0 or k < lo_k:
+                lo_k = k
+            if k > hi_k:
+                hi_k = k
         minor = int(math.floor(p))
         if minor < 0 or minor >= nmin:
             continue
@@ -596,18 +658,11 @@ def own_steps(fan, i, width, height, own, buf):
             x, y = width - 1 - m, minor
         own[k, 0] = x
         own[k, 1] = y
-        buf[k, _B_OWN] = 1.0
-        # The pixel's centre projected onto the line, as a position along it: the step's
-        # centre moved by the part of the centre's offset that runs along the line (at most
-        # a quarter step), so its range and depth are the centre's up to the offset across
-        # the line (the azimuth's).
-        t = (minor + 0.5 - p) * slope / (1.0 + slope * slope)
-        buf[k, _B_S] = k + 0.5 + (t if fan.nadir else -t)
         if first_k < 0 or k < first_k:
             first_k = k
         if k > last_k:
             last_k = k
-    return first_k, last_k, n
+    return lo_k, hi_k, first_k, last_k, n
 
 
 @njit(cache=True)
@@ -616,9 +671,8 @@ def ownership_counts(fan, width, height):
     counts = np.zeros((height, width), np.int64)
     size = max(width, height) + 1
     own = np.empty((size, 2), np.int64)
-    buf = np.empty((size, _BUF))
     for i in range(fan.aim.shape[0]):
-        first_k, last_k, _ = own_steps(fan, i, width, height, own, buf)
+        _, _, first_k, last_k, _ = own_steps(fan, i, width, height, own)
         for k in range(max(first_k, 0), last_k + 1):
             if own[k, 0] >= 0:
                 counts[own[k, 1], own[k, 0]] += 1
@@ -829,7 +883,7 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, limits, tan_lo, air):
                     st[_AG] += w * 0.5 * (c_in[1] + c_out[1])
                     st[_AB] += w * 0.5 * (c_in[2] + c_out[2])
                     st[_AW] += w
-                    centre = buf[int(st[_ROW]), _B_S]
+                    centre = st[_ROW] + 0.5
                     if a <= centre < sb:
                         hh, vv = _direction(ln, centre)
                         st[_IR] = _inverse_range_at(hh, vv, seg)

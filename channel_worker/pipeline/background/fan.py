@@ -9,16 +9,20 @@ the two diagonals through V. A wedge's lines are aimed at the pixel centres of t
 it faces, one a pixel, and stepped a pixel row (the UP and DOWN wedges) or column (LEFT and
 RIGHT) at a time from that edge towards V: lines converge towards V, so at every step
 neighbouring lines are at most one pixel apart and every pixel of the wedge holds the point
-of at least one line. A pixel belongs to the first line (lowest along the edge) whose point
-falls in it, if its centre lies in the wedge; the wedge test is one homogeneous expression of
-the pixel centre and V, the same in every wedge, so the wedges share no pixel and miss none
-(ties on a diagonal go to UP and DOWN, the pixel at V itself to UP). Near V many lines fall
-in one pixel: the first takes it, the others pass it by. A pixel lies within half a pixel of
-its line's point across the line; the lines through the pixel centres of the aimed edges are
-exact, so the channel's borders, where channels join, are sampled at their own pixels.
+of at least one line (the aimed edge is continued past the screen's corners as far as the
+wedge's lines still cross the screen, and two spare lines go past each end). A pixel belongs
+to the line whose point in it is nearest its centre (ties to the lower line), if its centre
+lies in the wedge; the wedge test is one homogeneous expression of the pixel centre and V, the
+same in every wedge, so the wedges share no pixel and miss none (ties on a diagonal go to UP
+and DOWN, the pixel at V itself to UP). Near V many lines fall in one pixel: the nearest
+takes it, the others pass it by. The owner writes the pixel interpolated between itself and
+the neighbouring line on the other side of the pixel's centre (_cast_kernels._write), so every
+pixel, the channel's border pixels where channels join included, shows its own azimuth.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
@@ -59,39 +63,20 @@ def line_fan(frame: FrameConstants) -> LineFan:
     nminor = np.array([w, w, h, h], np.int64)
     vp = np.array([vx, vx, vy, vy])
     vq = np.array([-vy, vy, -vx, vx])
-    # The border pixels' centres, each once (screen x, y).
-    cols = np.arange(w) + 0.5
-    rows = np.arange(1, h - 1) + 0.5
-    bx = np.concatenate([cols, cols, np.full(rows.size, 0.5), np.full(rows.size, w - 0.5)])
-    by = np.concatenate([np.full(w, 0.5), np.full(w, h - 0.5), rows, rows])
-    bx, by = np.unique(np.stack([bx, by], axis=1), axis=0).T  # one-pixel-wide screens
-    wedges, aims, slopes, points = [], [], [], []
+    wedges, aims, slopes = [], [], []
     for wedge in (UP, DOWN, LEFT, RIGHT):
-        # The wedge's own coordinates of the border centres, and their offsets from V
-        # (homogeneous: (p vw - vp, q vw - vq), pointing away from V).
-        p_c = bx if wedge in (UP, DOWN) else by
-        q_c = np.choose(wedge, [-by, by, -bx, bx])
-        dp = p_c * vw - vp[wedge]
-        dq = q_c * vw - vq[wedge]
-        # Aimed at: the border pixels where the wedge's lines leave the screen (moving on
-        # away from V leaves it: the edge the wedge faces, and the side edges on V's far
-        # side), in the wedge or within _SPARE_LINES pixels of it across a diagonal.
-        # (With V at infinity every pixel has one direction: a wedge holds all or none.) A
-        # border pixel all but on V's own row or column is left out: its slope would
-        # overflow, and the lines beside it reach that pixel.
-        far = _leaves_screen(bx, by, vx, vy, vw, w, h)
-        tiny = 1e-9 * max(vw, abs(vp[wedge]), abs(vq[wedge]))
-        keep = far & (dq > tiny) & (dq + _SPARE_LINES * vw >= np.abs(dp))
-        if not keep.any():
+        lo, hi = _aim_range(float(vp[wedge]), float(vq[wedge]), vw, float(qa[wedge]),
+                            int(nmajor[wedge]), int(nminor[wedge]), wedge >= LEFT)
+        if lo > hi:
             continue
-        p_c, q_c, dp, dq = p_c[keep], q_c[keep], dp[keep], dq[keep]
-        slope = dp / dq  # guard: dq > 0
-        aim = p_c + (qa[wedge] - q_c) * slope  # p where the line crosses the aimed row
-        order = np.argsort(aim, kind="stable")
-        wedges.append(np.full(order.size, wedge, np.int64))
-        aims.append(aim[order])
-        slopes.append(slope[order])
-        points.append(np.stack([bx[keep][order], by[keep][order]], axis=1))
+        j = np.arange(math.floor(lo - 0.5) - _SPARE_LINES, math.ceil(hi - 0.5) + _SPARE_LINES + 1)
+        aim = j + 0.5
+        den = qa[wedge] * vw - vq[wedge]
+        # Guard: den = 0 puts V on the aimed row itself: the wedge's lines are single points.
+        slope = (aim * vw - vp[wedge]) / den if den != 0.0 else np.zeros_like(aim)
+        wedges.append(np.full(aim.shape, wedge, np.int64))
+        aims.append(aim)
+        slopes.append(slope)
     if not aims:  # cannot happen: every pixel lies in some wedge
         raise ValueError("line_fan: no wedge holds a pixel")
     wedge_of = np.concatenate(wedges)
@@ -101,20 +86,38 @@ def line_fan(frame: FrameConstants) -> LineFan:
     prev[1:] = wedge_of[1:] == wedge_of[:-1]
     nxt = np.zeros(aim.shape, np.bool_)
     nxt[:-1] = prev[1:]
-    # Each line's azimuth from its border pixel's centre, on the aimed side of V (the
-    # half-plane's own side); at V itself any azimuth is right.
-    sx, sy = np.concatenate(points).T
+    # Each line's azimuth from its aimed point, on the aimed side of V (the half-plane's own
+    # side; at V itself, where a line is a point, any azimuth is right).
+    q = qa[wedge_of]
+    sx = np.choose(wedge_of, [aim, aim, -q, q])
+    sy = np.choose(wedge_of, [-q, q, aim, aim])
     rays = np.stack([(sx - m1) / m0, (sy - m3) / m2, np.ones_like(sx)], axis=1) @ rot
     phi = np.arctan2(rays[:, 0], rays[:, 1])
     return LineFan(wedge_of, np.ascontiguousarray(aim), np.ascontiguousarray(slope), prev, nxt,
                    np.sin(phi), np.cos(phi), qa, nmajor, nminor, vp, vq, vw, bool(nadir))
 
 
-def _leaves_screen(bx: np.ndarray, by: np.ndarray, vx: float, vy: float, vw: float,
-                   w: int, h: int) -> np.ndarray:
-    """Which border centres (bx, by) are where a ray from V through them leaves the screen:
-    on the edge it is heading for (the wedge's aimed edge, or a side edge V lies inside of)."""
-    dx = bx * vw - vx  # the ray's direction away from V (homogeneous, vw >= 0)
-    dy = by * vw - vy
-    return (((by == 0.5) & (dy < 0.0)) | ((by == h - 0.5) & (dy > 0.0))
-            | ((bx == 0.5) & (dx < 0.0)) | ((bx == w - 0.5) & (dx > 0.0)))
+def _aim_range(vp: float, vq: float, vw: float, qa: float, nmajor: int, nminor: int,
+               strict: bool) -> tuple[float, float]:
+    """The p range on the aimed row (q = qa) of the lines through V that reach the wedge's
+    part of the screen, in the wedge's coordinates; lo > hi if the wedge holds no pixel."""
+    q_lo, q_hi = qa + 0.5 - nmajor, qa + 0.5  # the screen's pixel edges along q
+    corners_p = (0.0, float(nminor))
+    if vw == 0.0:
+        # V at infinity: parallel lines, leaving V along -(vp, vq); the wedge is the whole
+        # screen or none of it.
+        if not (-vq > abs(vp) if strict else -vq >= abs(vp) and -vq > 0.0):
+            return 1.0, 0.0
+        slope = vp / vq  # guard: -vq > 0
+        ps = [p + (qa - q) * slope for p in corners_p for q in (q_lo, q_hi)]
+        return min(ps), max(ps)
+    big_p, big_q = vp / vw, vq / vw  # guard: vw > 0
+    if big_q > qa:
+        return 1.0, 0.0  # V beyond the aimed row: no pixel centre on the aimed side of it
+    reach = qa - big_q
+    lo, hi = big_p - reach, big_p + reach  # the diagonals through V
+    if q_lo > big_q:
+        # The screen lies wholly on the aimed side of V: its corners bound its shadow.
+        ps = [big_p + (p - big_p) * reach / (q - big_q) for p in corners_p for q in (q_lo, q_hi)]
+        lo, hi = max(lo, min(ps)), min(hi, max(ps))
+    return lo, hi
