@@ -60,30 +60,41 @@ def _tile(frame, aux, depth, out_inv_z, x0, y0):
     h = frame.height
     px = aux.pixels
     offsets = frame.offsets
+    n_s = offsets.shape[0]
     m = frame.mapping
     dz = frame.dz_row
     inv_sxs = 1.0 / m[0]  # guard: screen_mapping's scales are nonzero
     inv_sys = 1.0 / m[2]
+    margin = depth.margin_m
     for y in range(y0, min(y0 + depth.tile, h)):
+        ty = (y + 0.5 - m[3]) * inv_sys
         for x in range(x0, min(x0 + depth.tile, w)):
+            for s in range(n_s):
+                out_inv_z[y, x, s] = 0.0
             # A sample's four neighbouring pixel centres lie among the 3 x 3 around its own;
-            # none covered: nothing to interpolate.
+            # none covered: nothing to interpolate (most pixels of a sub-area under sky).
             near = False
             for yy in range(max(y - 1, 0), min(y + 2, h)):
                 for xx in range(max(x - 1, 0), min(x + 2, w)):
                     if px[yy, xx, 0] > 0.0:
                         near = True
-            for s in range(offsets.shape[0]):
-                out_inv_z[y, x, s] = 0.0
             if not near:
                 continue
-            for s in range(offsets.shape[0]):
-                sx = x + offsets[s, 0]
-                sy = y + offsets[s, 1]
-                gx = sx - 0.5
-                gy = sy - 0.5
+            # The eye ray's length and world z at the pixel centre, and across it to first
+            # order (z is linear in the screen; the length's second-order term is ~1e-7
+            # relative at a pixel's angle).
+            tx = (x + 0.5 - m[1]) * inv_sxs
+            ray = math.sqrt(tx * tx + ty * ty + 1.0)
+            grad_x = tx / ray * inv_sxs  # guard: ray >= 1
+            grad_y = ty / ray * inv_sys
+            wz = dz[0] * tx + dz[1] * ty + dz[2]
+            for s in range(n_s):
+                ox = offsets[s, 0] - 0.5
+                oy = offsets[s, 1] - 0.5
                 # The cell of pixel centres around the sample; at the image's border the
                 # nearest cell, extrapolated (1/z stays affine, as it is across a plane).
+                gx = x + ox
+                gy = y + oy
                 xa = min(max(int(math.floor(gx)), 0), max(w - 2, 0))
                 ya = min(max(int(math.floor(gy)), 0), max(h - 2, 0))
                 fx = gx - xa
@@ -113,20 +124,16 @@ def _tile(frame, aux, depth, out_inv_z, x0, y0):
                 if px[yb, xb, 1] != 0.0:
                     num += w11 * px[yb, xb, 1]
                     den += w11
-                if den <= 0.0:
+                if den <= 0.0 or num <= 0.0:
                     continue
                 inv = num / den  # guard: den > 0
-                if inv <= 0.0:
-                    continue
-                tx = (sx - m[1]) * inv_sxs
-                ty = (sy - m[3]) * inv_sys
-                ray = math.sqrt(tx * tx + ty * ty + 1.0)
-                wz = dz[0] * tx + dz[1] * ty + dz[2]
+                ray_s = ray + ox * grad_x + oy * grad_y
+                wz_s = wz + (ox * dz[0] * inv_sxs + oy * dz[1] * inv_sys)
                 # The terrain pushed back by the margin of height: margin / sin(depression) of
                 # range, the sine floored at 1e-3 (at most 1000 margins), so a polygon lying on
                 # the terrain (a runway on its pad) wins against terrain rounded by
-                # interpolation. Guard: ray >= 1.
-                push = (depth.margin_m * ray / max(-wz, 1e-3 * ray) if wz < 0.0
-                        else depth.margin_m)
-                # z + push / ray, as 1/z; guard: inv > 0, push >= 0.
-                out_inv_z[y, x, s] = inv / (1.0 + inv * push / ray)
+                # interpolation. z + push / ray, as 1/z: inv d / (d + inv margin) with d the
+                # depression's sine times the ray's length (1 above the horizon); guard: the
+                # denominator is > 0 (d > 0, inv > 0, margin >= 0).
+                d = max(-wz_s, 1e-3 * ray_s) if wz_s < 0.0 else ray_s
+                out_inv_z[y, x, s] = inv * d / (d + inv * margin)
