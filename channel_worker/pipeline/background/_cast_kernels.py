@@ -47,10 +47,10 @@ _STATE = 12
 # 1/z (eye depth, metres) of the surface at the step's centre.
 _B_R, _B_G, _B_B, _B_A, _B_IZ = 0, 1, 2, 3, 4
 _BUF = 5
-# A line's record in its lane (cast_kernel): the steps it walks, the steps it owns, its steps,
-# and its rays (_Line's h0, h1, z0, z1).
-_M_LO, _M_HI, _M_FIRST, _M_LAST, _M_N, _M_H0, _M_H1, _M_Z0, _M_Z1 = 0, 1, 2, 3, 4, 5, 6, 7, 8
-_META = 9
+# A line's record in its lane (cast_kernel): the steps it walks, the steps it owns, and its
+# steps.
+_M_LO, _M_HI, _M_FIRST, _M_LAST, _M_N = 0, 1, 2, 3, 4
+_META = 5
 #: Lines per block: a lane casts a block's lines in order, and the lines on either side of it.
 _BLOCK = 32
 
@@ -427,9 +427,22 @@ def cast_kernel(pages, fan, limits, air, frame, sky, out, aux, visits, threads):
             end = min(start + _BLOCK, n_lines)
             lo = start - 1 if fan.prev[start] else start
             hi = end if fan.next[end - 1] else end - 1
+            _own(lo, fan, frame, own[lo % 3], meta[lo % 3])
             for j in range(lo, hi + 1):
-                used = _line(j, st, own[j % 3], buf[j % 3], meta[j % 3], pages, fan, limits,
-                             air, frame)
+                if j < hi:
+                    _own(j + 1, fan, frame, own[(j + 1) % 3], meta[(j + 1) % 3])
+                # Walked over the steps it or a neighbour owns: a neighbour's pixels there
+                # interpolate it.
+                k_lo = meta[j % 3, _M_FIRST]
+                k_hi = meta[j % 3, _M_LAST]
+                for nb in (j - 1, j + 1):
+                    if lo <= nb <= hi and (fan.prev[j] if nb < j else fan.next[j]):
+                        f = meta[nb % 3, _M_FIRST]
+                        if f >= 0.0:
+                            k_lo = f if k_lo < 0.0 else min(k_lo, f)
+                            k_hi = max(k_hi, meta[nb % 3, _M_LAST])
+                used = _line(j, int(k_lo), int(k_hi), st, buf[j % 3], meta[j % 3], pages, fan,
+                             limits, air, frame)
                 if start <= j < end:
                     visits[j] = used
                 if start <= j - 1 < end:
@@ -439,15 +452,22 @@ def cast_kernel(pages, fan, limits, air, frame, sky, out, aux, visits, threads):
 
 
 @borrowing
-def _line(i, st, own, buf, meta, pages, fan, limits, air, frame):
-    """Cast line i of cast_kernel into its buffer buf, its steps' pixels into own and its
-    record into meta, with st as its scan state; returns the voxels visited."""
-    lo_k, hi_k, first_k, last_k, n = own_steps(fan, i, frame.width, frame.height, own)
-    meta[_M_LO] = lo_k
-    meta[_M_HI] = hi_k
+def _own(i, fan, frame, own, meta):
+    """Line i's steps' pixels into own and their range into its record meta (own_steps)."""
+    first_k, last_k, n = own_steps(fan, i, frame.width, frame.height, own)
     meta[_M_FIRST] = first_k
     meta[_M_LAST] = last_k
     meta[_M_N] = n
+
+
+@borrowing
+def _line(i, lo_k, hi_k, st, buf, meta, pages, fan, limits, air, frame):
+    """Cast line i of cast_kernel over its steps lo_k .. hi_k into its buffer buf, with st as
+    its scan state, and note the steps walked in its record meta; returns the voxels
+    visited."""
+    meta[_M_LO] = lo_k
+    meta[_M_HI] = hi_k
+    n = int(meta[_M_N])
     if lo_k < 0:
         return 0
     wedge = fan.wedge[i]
@@ -582,10 +602,8 @@ def own_steps(fan, i, width, height, own):
     pixel's centre lies in the wedge and no neighbouring line's point in the pixel is nearer
     its centre;
     own[k] = (x, y) or (-1, .), for steps k in order of elevation (away from the vanishing
-    point when it is the nadir's image). Returns the first and last step the line must be
-    walked over (where its point lies within a pixel of the screen: the pixels beside it
-    interpolate it), the first and last step it owns (-1 if none of either) and its steps
-    n."""
+    point when it is the nadir's image). Returns the first and last step it owns (-1 if none)
+    and its steps n."""
     wedge = fan.wedge[i]
     qa = fan.qa[wedge]
     vp = fan.vp[wedge]
@@ -608,10 +626,8 @@ def own_steps(fan, i, width, height, own):
     if vw > 0.0:
         last = min(last, int(math.floor(qa - vq / vw)))  # guard: vw > 0
     if last < 0:
-        return -1, -1, -1, -1, 0
+        return -1, -1, 0
     n = last + 1
-    lo_k = -1
-    hi_k = -1
     first_k = -1
     last_k = -1
     for m in range(n):
@@ -619,11 +635,6 @@ def own_steps(fan, i, width, height, own):
         own[k, 0] = -1
         q = qa - m
         p = aim - m * slope
-        if -1.0 < p < nmin + 1.0:
-            if lo_k < 0 or k < lo_k:
-                lo_k = k
-            if k > hi_k:
-                hi_k = k
         minor = int(math.floor(p))
         if minor < 0 or minor >= nmin:
             continue
@@ -662,7 +673,7 @@ def own_steps(fan, i, width, height, own):
             first_k = k
         if k > last_k:
             last_k = k
-    return lo_k, hi_k, first_k, last_k, n
+    return first_k, last_k, n
 
 
 @njit(cache=True)
@@ -672,7 +683,7 @@ def ownership_counts(fan, width, height):
     size = max(width, height) + 1
     own = np.empty((size, 2), np.int64)
     for i in range(fan.aim.shape[0]):
-        _, _, first_k, last_k, _ = own_steps(fan, i, width, height, own)
+        first_k, last_k, _ = own_steps(fan, i, width, height, own)
         for k in range(max(first_k, 0), last_k + 1):
             if own[k, 0] >= 0:
                 counts[own[k, 1], own[k, 0]] += 1
