@@ -383,7 +383,7 @@ def print_report(record: dict[str, Any]) -> None:
         body.append([s] + [f"{r[f'threads_{n}']['stages_ms'].get(s, 0.0):.2f}"
                            for r in rows for n in THREADS]
                     + [f"{sp:.2f}" if sp is not None else "-"])
-        # The stage's parts (FrameReport.part_seconds, e.g. background.scan) under it.
+        # The stage's parts (FrameReport.part_seconds, e.g. background.cast) under it.
         for part in rows[0]["threads_1"].get("parts_ms", {}):
             if part.startswith(s + "."):
                 sp = summary["speedup_by_stage"].get(part)

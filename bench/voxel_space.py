@@ -12,7 +12,7 @@ with the distance, so far terrain costs fewer samples. Pitch is a shift of the h
 (the picture is sheared, not rotated); there is no roll.
 
 bench/bench_terrain.py times it beside our terrain stage (JP H07-76990: levels, elevation-angle
-occlusion, coverage-weighted colour, warp) from the same eyes, with the same channel frustum
+occlusion, coverage-weighted colour, cast at any roll) from the same eyes, with the same channel frustum
 and the same database, and measures both against the exact ray-cast reference
 (channel_worker/testing/terrain_reference.py). It is written for speed, not for looks: one
 sample per pixel, nearest map cell, no level of detail, no filtering. It shares no kernel with

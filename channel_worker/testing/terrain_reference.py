@@ -1,9 +1,9 @@
 """Reference renderer for voxel terrain, for tests and benchmarks only: exact ray casting.
 
-The production terrain (the background stage's radial column scan and warp, after JP H07-76990)
-approximates what every sample of a channel sees of a TerrainDatabase. This module computes it
-exactly, one ray per sample, so the approximation can be measured. It is written to be
-obviously right, not fast.
+The production terrain (the background stage's radial scans cast along screen lines, after
+JP H07-76990) approximates what every sample of a channel sees of a TerrainDatabase. This
+module computes it exactly, one ray per sample, so the approximation can be measured. It is
+written to be obviously right, not fast.
 
 The surface (world frame: x east, y north, z up, metres)
 ---------------------------------------------------------

@@ -8,10 +8,11 @@ range and cloud images alone are 35 MB at 1024 x 768 x 4) and frees them at its 
 malloc serves blocks above its mmap threshold with fresh mappings and returns them to the
 system when freed, so every frame touches its arrays' pages for the first time again: a page
 fault per 4 KiB, taken under the process's memory lock, which serialises the threads. Measured
-on the demo frame's warp (1024 x 768 x 4, 2 cores): 75.2 ms with reused arrays, 78.6 ms with
-fresh ones on one thread; 41.8 against 46.0 ms on two. With the thresholds raised, a freed block
-stays in malloc's heap and the next frame's array of the same size reuses its pages (73.0 and
-40.7 ms). The heap then holds what one frame needs at its largest, which a worker needs anyway.
+on the demo frame's terrain warp (the background's design until 2026-11; 1024 x 768 x 4,
+2 cores): 75.2 ms with reused arrays, 78.6 ms with fresh ones on one thread; 41.8 against
+46.0 ms on two. With the thresholds raised, a freed block stays in malloc's heap and the next
+frame's array of the same size reuses its pages (73.0 and 40.7 ms). The heap then holds what
+one frame needs at its largest, which a worker needs anyway.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""numba kernel of the cloud scan (clouds.py): the coarse cloud pre-image (JP H07-76990's
+"""numba kernel of the cloud scan (clouds.py): the coarse cloud image (JP H07-76990's
 cloud frame buffer), in the CLOUD_CHANNELS layout of _groups.py.
 """
 
