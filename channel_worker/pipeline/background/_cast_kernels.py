@@ -10,12 +10,14 @@ the voxel's bilinear corner colours between two local points, or one colour (wal
 patterns). _surface and _wall find the part of a segment that shows; _emit projects it onto
 the line (one division per end point: the screen position along the line is a projective
 function of the point) and spreads it over the line's pixel steps by the share of each step
-it covers; _finish_step writes a step's pixel, through the haze and fog, over the sky or earth
-plane behind it.
+it covers; _finish_step keeps a step's terrain, through the haze and fog, in the line's
+buffer. _write then writes the pixels the line owns, each interpolated between the line and
+the neighbouring line on the other side of the pixel's centre, over the sky or earth plane
+behind it.
 
 Occlusion is by elevation tangent (z / r against the highest seen so far): no trigonometry
-per voxel. A line's steps are its pixels in order of elevation (fan.py's fan: every pixel
-belongs to exactly one line).
+per voxel. A line's steps are the pixel rows (or columns) it crosses, in order of elevation
+(fan.py's fan: every pixel belongs to exactly one line).
 
 The per-line and per-segment functions are compiled without reference counting
 (jit.borrowing): they take the groups whole, and numba would otherwise count every array of a
@@ -99,8 +101,7 @@ class _Line(NamedTuple):
     azimuth and vertical component z0 + z1 s (both affine in s: the screen maps linearly to
     eye rays). n: steps. tan_lo, tan_hi: elevation tangents at s = 0 and s = n (-inf or +inf
     where that end is the nadir or zenith). axh: the fog axis's horizontal component along
-    the azimuth. sgn: +1 when elevation grows with s from the nadir side, for directions past
-    the vanishing point."""
+    the azimuth."""
 
     h0: float
     h1: float
