@@ -790,32 +790,17 @@ def range_error(range_m: np.ndarray, terrain: np.ndarray, ref_range: np.ndarray,
 
 def peer_case(terrain, database, maps, eye, repeats: int, stride: int) -> dict[str, Any]:
     """Our frame and the peer's from one eye, timed alternately in every repetition (a busy
-    moment of the machine falls on both alike), and the range error of both."""
-    from bench.voxel_space import render_voxel_space
+    moment of the machine falls on both alike: stage_against_peer), and the range error of
+    both."""
     from channel_worker.pipeline.geometry.view import make_view
-    from channel_worker.pipeline.render import render_frame
-    from services.rig.report import FrameReport
 
-    channel = sweep_channel()
-    view = make_view(channel, eye)
-    options = RenderOptions(samples=SAMPLES, with_range=False)
-    out = np.empty((channel.height, channel.width, 3), np.float32)
-    report = FrameReport()
-    peer = None
-    stage, frame, peer_walls = [], [], []
-    for k in range(repeats + 1):  # the first is the warm-up: numba compiles, pages are read
-        report.clear()
-        t0 = time.perf_counter()
-        render_frame(database, channel, eye, options, report=report, out=out)
-        t1 = time.perf_counter()
-        peer = render_voxel_space(maps, view, sky=database.sky_colour,
-                                  earth=database.earth_colour, out=peer)
-        t2 = time.perf_counter()
-        if k:
-            stage.append(report.stage_seconds["background"])
-            frame.append(t1 - t0)
-            peer_walls.append(t2 - t1)
-    assert peer is not None  # repeats + 1 >= 1 frames
+    view = make_view(sweep_channel(), eye)
+    timed = stage_against_peer(database, maps, eye, eye,
+                               RenderOptions(samples=SAMPLES, with_range=False), repeats)
+    peer = timed["peer_frame"]
+    stage = [1e-3 * t for t in timed["ours_ms_all"]]
+    frame = [1e-3 * t for t in timed["frame_ms_all"]]
+    peer_walls = [1e-3 * t for t in timed["peer_ms_all"]]
     t0 = time.perf_counter()
     centre = np.array([[0.5, 0.5]])
     ref = reference_subset(terrain, view, centre, stride)
@@ -829,7 +814,7 @@ def peer_case(terrain, database, maps, eye, repeats: int, stride: int) -> dict[s
             "ratio_frame_over_peer": median_ms(frame) / peer_ms,
             "terrain_ms_all": [1e3 * w for w in stage], "frame_ms_all": [1e3 * w for w in frame],
             "peer_ms_all": [1e3 * w for w in peer_walls],
-            "voxels": report.counters.get("terrain_voxels"), "peer_samples": peer.samples,
+            "voxels": timed["voxels"], "peer_samples": peer.samples,
             # Our terrain is where inv_z > 0 (the earth plane beyond the database has a range
             # too); the peer's where it has a range.
             "ours": range_error(ours_c.range_m[pick], ours_c.inv_z[..., 0][pick] > 0.0,
@@ -1020,9 +1005,10 @@ def stage_against_peer(database, maps, eye, peer_eye, options: RenderOptions,
     out = np.empty((channel.height, channel.width, 3), np.float32)
     report = FrameReport()
     peer = None
-    stage, peer_walls = [], []
+    stage, frame, peer_walls = [], [], []
     for k in range(repeats + 1):  # the first is the warm-up: numba compiles, pages are read
         report.clear()
+        t0 = time.perf_counter()
         render_frame(database, channel, eye, options, report=report, out=out)
         t1 = time.perf_counter()
         peer = render_voxel_space(maps, peer_view, sky=database.sky_colour,
@@ -1030,11 +1016,13 @@ def stage_against_peer(database, maps, eye, peer_eye, options: RenderOptions,
         t2 = time.perf_counter()
         if k:
             stage.append(report.stage_seconds["background"])
+            frame.append(t1 - t0)
             peer_walls.append(t2 - t1)
     assert peer is not None  # repeats + 1 >= 1 frames
     ours_ms, peer_ms = median_ms(stage), median_ms(peer_walls)
     return {"ours_ms": ours_ms, "peer_ms": peer_ms, "ratio": ours_ms / peer_ms,
             "ours_ms_all": [1e3 * w for w in stage], "peer_ms_all": [1e3 * w for w in peer_walls],
+            "frame_ms_all": [1e3 * w for w in frame],
             "voxels": report.counters.get("terrain_voxels"),
             "lines": report.counters.get("terrain_lines"),
             "eye_clamped": report.counters.get("terrain_eye_clamped"),

@@ -80,12 +80,3 @@ def haze_amount(params, range_m, sin_elev):
 def haze_amount_py(haze: Haze, eye_z: float, range_m: float, sin_elev: float) -> float:
     """haze_amount for one ray from Python (tests, reports)."""
     return float(haze_amount(haze_params(haze, eye_z), float(range_m), float(sin_elev)))
-
-
-@njit(cache=True)
-def sky_haze_table(params, theta0, dtheta, n):
-    """(n,) haze of the sky (range infinite) at elevations theta0 + (i + 1/2) dtheta."""
-    out = np.empty(n)
-    for i in range(n):
-        out[i] = haze_amount(params, math.inf, max(math.sin(theta0 + (i + 0.5) * dtheta), 0.0))
-    return out
