@@ -15,7 +15,10 @@ from collections.abc import Callable
 from typing import Any
 
 import numba
-from numba import njit
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic
 
 #: numba's option names for a cached function without reference counting (the CPU target's
 #: ``_nrt`` option: not in numba's type stubs, hence passed as a mapping).
@@ -48,3 +51,46 @@ def thread_pool_size() -> int:
     """The threads numba's parallel kernels can use at most in this process
     (NUMBA_NUM_THREADS; its configuration module sets it at run time)."""
     return int(vars(numba.config)["NUMBA_NUM_THREADS"])
+
+
+@intrinsic
+def _cttz64(typingctx: Any, word: Any) -> Any:
+    """LLVM's count-trailing-zeros on a uint64 (one tzcnt/bsf instruction)."""
+    sig = types.uint64(types.uint64)
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return builder.cttz(args[0], ir.Constant(ir.IntType(1), 0))
+
+    return sig, codegen
+
+
+@intrinsic
+def _ctpop64(typingctx: Any, word: Any) -> Any:
+    """LLVM's population count on a uint64 (one popcnt instruction where the CPU has it)."""
+    sig = types.uint64(types.uint64)
+
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+        return builder.ctpop(args[0])
+
+    return sig, codegen
+
+
+@njit(cache=True, inline="always")
+def lowest_bit(word: Any) -> int:
+    """Index of the lowest set bit of a non-zero uint64 word (64 for 0)."""
+    return int(_cttz64(np.uint64(word)))  # type: ignore[call-arg]  # numba's typing call
+
+
+@njit(cache=True, inline="always")
+def bit_count(word: Any) -> int:
+    """How many bits of a uint64 word are set."""
+    return int(_ctpop64(np.uint64(word)))  # type: ignore[call-arg]  # numba's typing call
+
+
+@njit(cache=True, inline="always")
+def low_bits(n: int) -> Any:
+    """uint64 with bits 0 .. n - 1 set, 0 <= n <= 64 (a shift by 64 is undefined in LLVM, so
+    64 is its own case)."""
+    if n >= 64:
+        return ~np.uint64(0)
+    return (np.uint64(1) << np.uint64(n)) - np.uint64(1)

@@ -86,7 +86,8 @@ class RenderOptions:
         samples: sample pattern name (SAMPLE_PATTERNS); a count (1, 2, 4, 8, 16, as int or
             text) is taken as the pattern of that count and stored as its name.
         filter: pixel reconstruction filter (FILTERS).
-        subarea: sub-area edge length for coverage binning, pixels (1..256).
+        subarea: sub-area edge length for coverage binning, pixels (1..64: a row of one
+            sample of a sub-area is one 64-bit coverage mask).
         max_translucent: translucent features kept per sample, nearest first (1..15).
         terrain_bias: terrain resolution level bias (-4..4): voxels are kept 2**bias to
             2**(bias + 1) pixels wide; -1 is finer and slower, +1 coarser and faster.
@@ -124,7 +125,7 @@ class RenderOptions:
         _choice("renderer", self.renderer, RENDERERS)
         _choice("texture_filter", self.texture_filter, TEXTURE_FILTERS)
         _choice("coverage", self.coverage, COVERAGES)
-        for name, lo, hi in (("subarea", 1, 256), ("max_translucent", 1, 15), ("terrain_bias", -4, 4),
+        for name, lo, hi in (("subarea", 1, 64), ("max_translucent", 1, 15), ("terrain_bias", -4, 4),
                              ("fog_table_subdivision", 1, 64), ("threads", 0, 1024)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | np.integer) or not lo <= value <= hi:

@@ -19,7 +19,7 @@ import numpy as np
 
 from channel_worker.pipeline.contract import Bins, Edges
 
-from ._binning_kernels import bin_count_kernel, bin_fill_kernel
+from ._binning_kernels import bin_classify_kernel, bin_fill_kernel, row_buckets
 
 #: Guard band, pixels, added to every limiting distance. d is computed in float64 from
 #: coordinates below 2^20 with relative rounding near 1e-16, so its absolute error is below
@@ -35,7 +35,7 @@ def bin_features(edges: Edges, start: np.ndarray, width: int, height: int, subar
         edges: edge equations and bounds of the frame's polygons (edges.py).
         start: (N + 1,) polygon offsets into the edge rows (ScreenPolygons.start).
         width, height: raster size, pixels.
-        subarea: sub-area edge length in pixels (RenderOptions.subarea, 1..256; 16 by
+        subarea: sub-area edge length in pixels (RenderOptions.subarea, 1..64; 16 by
             measurement: smaller ones classify more sub-areas as fully covered but lengthen
             the lists, bench/bench_visibility.py).
     """
@@ -46,13 +46,14 @@ def bin_features(edges: Edges, start: np.ndarray, width: int, height: int, subar
     dcrit = np.abs(edges.e) * half + np.abs(edges.f) * half + DCRIT_GUARD
     order = np.argsort(-edges.nearest_inv_z, kind="stable").astype(np.int64)
     counts = np.zeros(tiles_x * tiles_y, np.int64)
-    args = (edges, start, order, dcrit, size, tiles_x, tiles_y)
-    bin_count_kernel(*args, counts)
+    rows = row_buckets(edges, order, size, tiles_y)
+    classes = np.empty(int(rows[2][-1]), np.uint8)
+    bin_classify_kernel(edges, start, dcrit, size, tiles_x, tiles_y, rows, classes, counts)
     tile_start = np.zeros(tiles_x * tiles_y + 1, np.int64)
     np.cumsum(counts, out=tile_start[1:])
     total = int(tile_start[-1])
     polygon = np.empty(total, np.int32)
     full = np.empty(total, np.bool_)
-    bin_fill_kernel(*args, tile_start, polygon, full)
+    bin_fill_kernel(edges, size, tiles_x, tiles_y, rows, classes, tile_start, polygon, full)
     return Bins(size=size, tiles_x=tiles_x, tiles_y=tiles_y, start=tile_start,
                 polygon=polygon, full=full)

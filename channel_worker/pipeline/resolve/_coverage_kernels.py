@@ -42,7 +42,8 @@ from channel_worker.pipeline.contract import (
 )
 from channel_worker.pipeline.jit import borrowing
 
-from .shading import eye_ray, sample_point, shade_sample
+from .shading import eye_ray, flat_colour, sample_point, shade_sample
+from .texturing import varies
 
 #: The features a pixel's samples see that have no edges (sky, earth, background), as one.
 _BEHIND = -1
@@ -200,17 +201,27 @@ def edge_pixel(cov, frame, background, sh, ids, counts, translucent, t_id, base,
             behind = EARTH_ID
         else:
             return False, 0.0, 0.0, 0.0
-    # One signature of _colour (a compile each) whatever integer types hold the ids.
-    pr, pg, pb = _colour(frame, sh, t_id, ids, np.int64(base), np.int64(p), np.int64(x), np.int64(y),
-                         np.int64(sp))
-    qr, qg, qb = _colour(frame, sh, t_id, ids, np.int64(base), np.int64(q if q >= 0 else behind),
-                         np.int64(x), np.int64(y), np.int64(sq))
+    pr, pg, pb = _feature_colour(frame, sh, t_id, ids, base, p, x, y, sp)
+    qr, qg, qb = _feature_colour(frame, sh, t_id, ids, base, q if q >= 0 else behind, x, y, sq)
     # Area inside P's edge: E = ia X + ib Y + ic over the pixel, in pixel units u, v and
     # divided by SUBPIXEL (the area does not change with the scale): ia u + ib v + E0.
     e0 = ia * (x * SUBPIXEL) + ib * (y * SUBPIXEL) + ic
     a = square_fraction(float(ia), float(ib), e0 / SUBPIXEL)
     # Q + a (P - Q): exactly Q's colour where both are one colour (a mesh's shared edge).
     return True, qr + a * (pr - qr), qg + a * (pg - qg), qb + a * (pb - qb)
+
+
+@njit(cache=True, inline="always")
+def _feature_colour(frame, sh, t_id, ids, base, f, x, y, s):
+    """Feature f's colour in pixel (x, y) as _colour gives it; a polygon, the sky or the earth
+    whose colour varies neither over the pixel nor with range is its flat colour, with no call
+    and no sample shaded (most edge pixels: the call alone passes the whole Shading group)."""
+    if not sh.by_range and f != BACKGROUND_ID and (f < 0 or not varies(sh, f)):
+        cr, cg, cb = flat_colour(sh, f)
+        return float(cr), float(cg), float(cb)
+    # One signature of _colour (a compile each) whatever integer types hold the ids.
+    return _colour(frame, sh, t_id, ids, np.int64(base), np.int64(f), np.int64(x), np.int64(y),
+                   np.int64(s))
 
 
 # Not inlined: edge_pixel is inlined into both box paths, and the sample shading this inlines

@@ -64,11 +64,18 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
     o_id, o_iz, t_id, t_cnt = sc.o_id, sc.o_iz, sc.t_id, sc.t_cnt
     # A sub-area whose every sample sees one thing and nothing translucent (open sky, open
     # ground, the inside of a large face) is one colour: fill it without shading.
+    # Visibility's mixed masks name every pixel whose samples may differ or see translucency;
+    # the others are known by their first sample.
     uniform = o_id[0]
-    for i in range(n):
-        if o_id[i] != uniform or (any_translucent and t_cnt[i] != 0):
+    for r in range(ty1 - ty0):
+        if sc.mixed[r] != 0:
             uniform = _MIXED
             break
+    if uniform != _MIXED:
+        for i in range(0, n, s_count):
+            if o_id[i] != uniform:
+                uniform = _MIXED
+                break
     if uniform < 0 and uniform != _MIXED:
         uniform = backdrop if backdrop != 0 else _MIXED
     if sh.by_range or (uniform >= 0 and varies(sh, uniform)):
@@ -112,11 +119,14 @@ def box_subarea(rect, backdrop, frame, background, sh, any_translucent, want_ran
                 same = f0 >= 0 or background.on or (backdrop != 0 and not sh.by_range)
                 # With a background every sample that no polygon covers sees it, terrain or not.
                 bg_only = f0 < 0 and background.on
-                for s in range(1, s_count):
+                # A pixel visibility left unmixed sees one thing with every sample, nothing
+                # translucent: no need to look at its samples.
+                mixed = (sc.mixed[y - ty0] >> np.uint64(x - tx0)) & np.uint64(1) != 0
+                for s in range(1, s_count if mixed else 1):
                     if o_id[base + s] != f0 and not (bg_only and o_id[base + s] < 0):
                         same = False
                         break
-                if same and any_translucent:
+                if same and mixed and any_translucent:
                     for s in range(s_count):
                         if t_cnt[base + s] != 0:
                             same = False

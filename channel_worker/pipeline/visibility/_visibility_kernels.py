@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit, prange
 
 from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, SKY_ID, SUBPIXEL
-from channel_worker.pipeline.jit import borrowing, lanes
+from channel_worker.pipeline.jit import bit_count, borrowing, lanes, low_bits, lowest_bit
 from channel_worker.pipeline.resolve._resolve_kernels import box_subarea
 from channel_worker.pipeline.resolve.shading import sample_point
 
@@ -34,6 +34,7 @@ class StoreOut(NamedTuple):
         rgb: (H, W, 3) float32 (fused).
         dropped: (tiles,) int64 translucent features dropped from a full store, per sub-area.
         stopped: (tiles,) int64 list entries never read (the early stop), per sub-area.
+        hidden: (tiles,) int64 list entries read but wholly behind covered samples (_hidden).
     """
 
     fused: bool
@@ -46,21 +47,78 @@ class StoreOut(NamedTuple):
     rgb: np.ndarray
     dropped: np.ndarray
     stopped: np.ndarray
+    hidden: np.ndarray
 
 
 class Scratch(NamedTuple):
     """One thread's sample store for a sub-area (sample i of the sub-area: ((y - ty0) * tw +
-    (x - tx0)) * S + s): the nearest opaque feature's 1/z, identity and layer, the nearer
-    translucent ones (nearest first) and their count, and each edge's integer step."""
+    (x - tx0)) * S + s): the nearest opaque feature's 1/z and identity, the nearer translucent
+    ones (nearest first: 1/z, identity, layer) and their count; the coverage masks (MaskLayout:
+    word r * wpr + w of row r) of the samples that hold an opaque feature (covered) and of the
+    feature being read (cw); per row, a lower bound of the stored opaque 1/z (row_far); and the
+    current feature's edges that cross the sub-area (act: edge rows, e_step: their steps,
+    e_inv: 1 / e_step); per row, the pixel columns whose samples may not all see one thing
+    (mixed: the others see one opaque feature, or nothing, with every sample). o_id is -1
+    where no opaque feature is held only once the list is read (_mark_uncovered): the masks
+    say which samples hold one."""
 
     o_iz: np.ndarray
     o_id: np.ndarray
-    o_lay: np.ndarray
     t_iz: np.ndarray
     t_id: np.ndarray
     t_lay: np.ndarray
     t_cnt: np.ndarray
     e_step: np.ndarray
+    e_inv: np.ndarray
+    act: np.ndarray
+    covered: np.ndarray
+    cw: np.ndarray
+    row_far: np.ndarray
+    mixed: np.ndarray
+
+
+class MaskLayout(NamedTuple):
+    """How a sub-area's samples are held as bit masks (N. Greene, "Hierarchical polygon tiling
+    with coverage masks", SIGGRAPH 96: coverage as words, combined 64 samples at a time).
+
+    One sample of one row of a sub-area is `size` bits (bit x for pixel column x of the
+    sub-area); a 64-bit word holds `spw` such sample rows of the same pixel row, so a row of
+    the sub-area is `wpr` words, sample s in word s // spw at bit (s % spw) * size + x.
+    size <= 64 (RenderOptions.subarea).
+
+    Attributes:
+        size, spw, wpr: as above.
+        rep: (wpr,) uint64 with bit slot * size set for every sample slot word w holds: a
+            pixel-column mask times rep[w] is that column range at every sample of the word.
+        extent: (4,) int64 the smallest and largest x offset, then y offset, of the pattern's
+            samples (1/SUBPIXEL units from the pixel's corner).
+    """
+
+    size: int
+    spw: int
+    wpr: int
+    rep: np.ndarray
+    extent: np.ndarray
+
+
+def mask_layout(size: int, off_fixed: np.ndarray) -> MaskLayout:
+    """The MaskLayout of sub-areas of `size` pixels and the pattern off_fixed ((S, 2) int64).
+
+    Raises:
+        ValueError: size outside 1..64 (a sample row of a sub-area must fit one word).
+    """
+    if not 1 <= size <= 64:
+        raise ValueError(f"subarea: must be 1..64 pixels (one sample row in a 64-bit mask), "
+                         f"got {size}")
+    s_count = off_fixed.shape[0]
+    spw = max(1, min(s_count, 64 // size))
+    wpr = -(-s_count // spw)
+    rep = np.zeros(wpr, np.uint64)
+    for s in range(s_count):
+        rep[s // spw] |= np.uint64(1) << np.uint64((s % spw) * size)
+    extent = np.array([off_fixed[:, 0].min(), off_fixed[:, 0].max(), off_fixed[:, 1].min(),
+                       off_fixed[:, 1].max()], np.int64)
+    return MaskLayout(size, spw, wpr, rep, extent)
 
 
 @njit(cache=True, inline="always")
@@ -86,18 +144,23 @@ def _nearer(iz, lay, idx, ref_iz, ref_lay, ref_idx):
 
 
 @njit(cache=True, parallel=True)
-def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads, cov):
-    """Per sub-area, per sample: the nearest opaque feature and the nearer translucent ones.
+def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads, cov, lay):
+    """Per sub-area: the nearest opaque feature and the nearer translucent ones per sample.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
-    A list is read nearest first; reading stops once every sample of the sub-area holds an
-    opaque feature nearer than the nearest point of the next feature (hierarchical depth
-    rejection; with the list order it skips all the rest).
+    A feature's coverage of the sub-area is built as bit masks (MaskLayout), a row of
+    samples at a time from its edges (_coverage), and merged 64 samples at a time: samples
+    that hold nothing take it without a depth test; samples that hold an opaque feature are
+    compared only where the order is ambiguous, that is where the feature's nearest point
+    is not behind the row's farthest stored 1/z. A feature whose box lies under covered
+    samples that are all nearer costs only that test (_hidden). A list is read nearest
+    first; reading stops once every sample holds an opaque feature nearer than the nearest
+    point of the next feature (with the list order it skips all the rest).
 
     bins, screen, edges, frame, background: the contract's values (Bins, ScreenPolygons,
     Edges, FrameConstants, Background); sh: the frame's Shading (resolve.shading), used on the
     fused path; out: StoreOut; threads: numba.get_num_threads() (jit.lanes); cov: the frame's
-    Coverage (resolve._coverage_kernels), read by the fused box filter.
+    Coverage (resolve._coverage_kernels), read by the fused box filter; lay: the MaskLayout.
 
     With a background (background.on) every sample starts out holding it as its nearest opaque
     feature (BACKGROUND_ID at background.inv_z, nothing where that is 0), so polygons behind
@@ -116,30 +179,33 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads, 
     # so its pixel writes run along the image rows instead of jumping a page per row of
     # every sub-area; the sample store is allocated once per thread.
     n_lanes = lanes(threads, bins.tiles_y)
+    n_words = bins.size * lay.wpr
     for lane in prange(n_lanes):
         n_t = n_max if out.any_translucent else 1
         sc = Scratch(np.empty(n_max, np.float64), np.empty(n_max, np.int32),
-                     np.empty(n_max, np.int32), np.empty((n_t, k_max), np.float64),
-                     np.empty((n_t, k_max), np.int32), np.empty((n_t, k_max), np.int32),
-                     np.zeros(n_t, np.int32), np.empty(max_edges, np.int64))
-        _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc, cov)
+                     np.empty((n_t, k_max), np.float64), np.empty((n_t, k_max), np.int32),
+                     np.empty((n_t, k_max), np.int32), np.zeros(n_t, np.int32),
+                     np.empty(max_edges, np.int64), np.empty(max_edges, np.float64),
+                     np.empty(max_edges, np.int64), np.zeros(n_words, np.uint64),
+                     np.zeros(n_words, np.uint64), np.empty(bins.size, np.float64),
+                     np.zeros(bins.size, np.uint64))
+        _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc, cov, lay)
 
 
 @borrowing
-def _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc, cov):
+def _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc, cov, lay):
     """The sub-areas of visibility_kernel's lane: rows lane, lane + n_lanes, ..."""
     for row in range(lane, bins.tiles_y, n_lanes):
         for t in range(row * bins.tiles_x, (row + 1) * bins.tiles_x):
-            _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov)
+            _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov, lay)
 
 
 @borrowing
-def _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov):
-    """One sub-area of visibility_kernel, with the row's sample store sc as scratch."""
+def _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov, lay):
+    """One sub-area of visibility_kernel, with the lane's sample store sc as scratch."""
     tx0, ty0, tx1, ty1 = _subarea_rect(t, bins.tiles_x, bins.size, frame.width, frame.height)
     tw = tx1 - tx0
     s_count = frame.offsets_fixed.shape[0]
-    k_max = out.trans.shape[3]
     any_translucent = out.any_translucent
     # With a background the sky and earth come painted by the background stage, per pixel.
     backdrop = 0 if background.on else _backdrop(tx0, ty0, bins.size, frame.horizon)
@@ -155,13 +221,11 @@ def _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov):
             return
         if _fill_backdrop(tx0, ty0, tx1, ty1, backdrop, frame, out):
             return
-    o_iz, o_id, o_lay = sc.o_iz, sc.o_id, sc.o_lay
-    t_iz, t_id, t_lay, t_cnt = sc.t_iz, sc.t_id, sc.t_lay, sc.t_cnt
-    covered = _start_store(tx0, ty0, tx1, ty1, s_count, n, background, sc)
+    covered = _start_store(tx0, ty0, tx1, ty1, s_count, n, background, sc, lay)
     if any_translucent:
         for i in range(n):
-            t_cnt[i] = 0
-    # Sub-areas with no translucent feature in their list take the opaque-only path even in
+            sc.t_cnt[i] = 0
+    # Sub-areas with no translucent feature in their list take the opaque-only merge even in
     # a frame that has translucent features elsewhere.
     trans_here = False
     if any_translucent:
@@ -169,107 +233,54 @@ def _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov):
             if screen.opacity[bins.polygon[k]] < 1.0:
                 trans_here = True
                 break
-    exact = (edges.ia, edges.ib, edges.ic, edges.bias)
-    off_fixed = frame.offsets_fixed
-    inv_sub = 1.0 / SUBPIXEL
     # The farthest stored opaque 1/z only grows as nearer features replace samples, so a stale
     # value is a safe lower bound; it is recomputed only when a stop might be missed by it.
     farthest = 0.0
     stale = False
     dropped = 0
+    hidden = 0
     # An edge can cross a pixel of the sub-area only if a partially covering feature was read.
     partial = False
     for k in range(k_first, k_end):
         p = bins.polygon[k]
+        bound = edges.nearest_inv_z[p] * (1.0 + _EARLY_STOP_MARGIN)
         if covered == n:
-            bound = edges.nearest_inv_z[p] * (1.0 + _EARLY_STOP_MARGIN)
             if bound >= farthest and stale:
-                farthest = o_iz[0]
+                farthest = sc.o_iz[0]
                 for i in range(1, n):
-                    farthest = min(farthest, o_iz[i])
+                    farthest = min(farthest, sc.o_iz[i])
                 stale = False
             if bound < farthest:
                 out.stopped[t] = k_end - k
                 break
-        full = bins.full[k]
-        partial |= not full
-        a = screen.inv_z[p, 0]
-        b = screen.inv_z[p, 1]
-        c = screen.inv_z[p, 2]
-        lay = screen.layer[p]
-        opaque = screen.opacity[p] >= 1.0
-        rows = (screen.start[p], screen.start[p + 1])
         box = (max(edges.x0[p], tx0), min(edges.x1[p], tx1 - 1),
                max(edges.y0[p], ty0), min(edges.y1[p], ty1 - 1))
+        if box[0] > box[1] or box[2] > box[3]:
+            continue
+        if _hidden(box, bound, tx0, ty0, sc, lay):
+            hidden += 1
+            continue
+        full = bins.full[k]
+        partial |= not full
+        if not _coverage(p, full, box, tx0, ty0, screen, edges, frame.offsets_fixed, sc, lay):
+            continue
+        plane = (screen.inv_z[p, 0], screen.inv_z[p, 1], screen.inv_z[p, 2], screen.layer[p])
+        opaque = screen.opacity[p] >= 1.0
         if opaque and not trans_here:
             # The common case in its own small function: fewer live values, better code.
-            added = _cover_opaque(p, full, (a, b, c, lay), rows, box, (tx0, ty0, tw), exact,
-                                  off_fixed, sc)
-            if added >= 0:
-                covered += added
-                stale = True
-            continue
-        lx0, lx1, ly0, ly1 = box
-        changed = False
-        n_edges = rows[1] - rows[0]
-        if not full:
-            for j in range(n_edges):
-                sc.e_step[j] = exact[0][rows[0] + j] * SUBPIXEL
-        for s in range(s_count):
-            ox = off_fixed[s, 0]
-            oy = off_fixed[s, 1]
-            for y in range(ly0, ly1 + 1):
-                py = y * SUBPIXEL + oy
-                klo = 0
-                khi = lx1 - lx0
-                if not full:
-                    klo, khi = _row_span(exact, rows[0], n_edges, sc.e_step, lx0 * SUBPIXEL + ox,
-                                         py, khi)
-                for x in range(lx0 + klo, lx0 + khi + 1):
-                    px = x * SUBPIXEL + ox
-                    i = ((y - ty0) * tw + (x - tx0)) * s_count + s
-                    iz = a * (px * inv_sub) + (b * (py * inv_sub) + c)
-                    if o_id[i] != -1 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], o_id[i]):
-                        continue
-                    if opaque:
-                        if o_id[i] == -1:
-                            covered += 1
-                        o_iz[i] = iz
-                        o_id[i] = p
-                        o_lay[i] = lay
-                        changed = True
-                        if not any_translucent:
-                            continue
-                        # Translucent features now behind the opaque one are hidden.
-                        m = t_cnt[i]
-                        while m > 0 and not _nearer(t_iz[i, m - 1], t_lay[i, m - 1],
-                                                    t_id[i, m - 1], iz, lay, p):
-                            m -= 1
-                        t_cnt[i] = m
-                    else:
-                        m = t_cnt[i]
-                        pos = m
-                        while pos > 0 and _nearer(iz, lay, p, t_iz[i, pos - 1],
-                                                  t_lay[i, pos - 1], t_id[i, pos - 1]):
-                            pos -= 1
-                        if m == k_max:
-                            # Store full: the farthest of the K + 1 is dropped (it is
-                            # the one seen through all the others).
-                            dropped += 1
-                            if pos == k_max:
-                                continue
-                            m -= 1
-                        for q in range(m, pos, -1):
-                            t_iz[i, q] = t_iz[i, q - 1]
-                            t_id[i, q] = t_id[i, q - 1]
-                            t_lay[i, q] = t_lay[i, q - 1]
-                        t_iz[i, pos] = iz
-                        t_id[i, pos] = p
-                        t_lay[i, pos] = lay
-                        t_cnt[i] = m + 1
-        if opaque and changed:
+            added = _merge_opaque(p, plane, bound, box, (tx0, ty0, tw), frame.offsets_fixed,
+                                  screen.layer, sc, lay)
+        else:
+            added, lost = _merge_general(p, plane, opaque, bound, box, (tx0, ty0, tw),
+                                         frame.offsets_fixed, screen.layer, sc, lay)
+            dropped += lost
+        if added >= 0:
+            covered += added
             stale = True
     out.dropped[t] = dropped
+    out.hidden[t] = hidden
+    if covered < n:
+        _mark_uncovered(tw, ty1 - ty0, s_count, sc, lay)
     if out.fused:
         box_subarea((tx0, ty0, tx1, ty1), backdrop, frame, background, sh, any_translucent,
                     out.want_range, sc, out.rgb, out.range_m, cov, cov.on and partial)
@@ -278,31 +289,385 @@ def _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov):
 
 
 @njit(cache=True, inline="always")
-def _start_store(tx0, ty0, tx1, ty1, s_count, n, background, sc):
-    """Clear the sub-area's store; with a background, every sample it covers starts out
-    holding it. Returns how many samples hold an opaque feature. Only the identities need
-    clearing: 1/z and layer are read only where an identity is set."""
+def _start_store(tx0, ty0, tx1, ty1, s_count, n, background, sc, lay):
+    """Clear the sub-area's masks; with a background, every sample it covers starts out holding
+    it. Returns how many samples hold an opaque feature. The store itself is read only where
+    the masks say a sample is covered (_mark_uncovered names the rest once the list is read)."""
     covered = 0
+    rows = ty1 - ty0
+    for i in range(rows * lay.wpr):
+        sc.covered[i] = 0
+    for r in range(rows):
+        sc.row_far[r] = np.inf
+        sc.mixed[r] = 0
     if background.on:
         # The terrain is the first opaque feature of every sample it covers; its layer is
         # below every polygon's, so a polygon at exactly its depth is seen.
         tw = tx1 - tx0
         for y in range(ty0, ty1):
-            for x in range(tx0, tx1):
-                base = ((y - ty0) * tw + (x - tx0)) * s_count
-                for s in range(s_count):
+            r = y - ty0
+            for s in range(s_count):
+                word = r * lay.wpr + s // lay.spw
+                shift = (s % lay.spw) * lay.size
+                for x in range(tx0, tx1):
                     iz = background.inv_z[y, x, s]
                     if iz > 0.0:
-                        sc.o_id[base + s] = BACKGROUND_ID
-                        sc.o_iz[base + s] = iz
-                        sc.o_lay[base + s] = -1
+                        i = ((y - ty0) * tw + (x - tx0)) * s_count + s
+                        sc.o_id[i] = BACKGROUND_ID
+                        sc.o_iz[i] = iz
+                        sc.covered[word] |= np.uint64(1) << np.uint64(shift + x - tx0)
+                        sc.row_far[r] = min(sc.row_far[r], iz)
                         covered += 1
-                    else:
-                        sc.o_id[base + s] = -1
-    else:
-        for i in range(n):
-            sc.o_id[i] = -1
+            # Pixels where the terrain holds some samples but not all.
+            any_px = np.uint64(0)
+            all_px = ~np.uint64(0)
+            for w in range(lay.wpr):
+                any_px, all_px = _fold(sc.covered[r * lay.wpr + w], w, any_px, all_px, s_count,
+                                       lay)
+            sc.mixed[r] = any_px & ~all_px
     return covered
+
+
+@njit(cache=True, inline="always")
+def _mark_uncovered(tw, th, s_count, sc, lay):
+    """o_id = -1 at every sample no opaque feature covers (what the box filter and the store
+    read as "nothing here")."""
+    cols = low_bits(tw)
+    for r in range(th):
+        for w in range(lay.wpr):
+            m_all = ~sc.covered[r * lay.wpr + w] & (cols * lay.rep[w])
+            for slot in range(lay.spw):
+                s = w * lay.spw + slot
+                if s >= s_count:
+                    break
+                m = (m_all >> np.uint64(slot * lay.size)) & cols
+                while m != 0:
+                    x = lowest_bit(m)
+                    m &= m - np.uint64(1)
+                    sc.o_id[(r * tw + x) * s_count + s] = -1
+
+
+@njit(cache=True, inline="always")
+def _hidden(box, bound, tx0, ty0, sc, lay):
+    """Every sample of the feature's box in the sub-area holds an opaque feature nearer than
+    the feature's nearest point (bound): it can change nothing (hierarchical rejection)."""
+    lx0, lx1, ly0, ly1 = box
+    cols = low_bits(lx1 - lx0 + 1) << np.uint64(lx0 - tx0)
+    for y in range(ly0, ly1 + 1):
+        r = y - ty0
+        if bound >= sc.row_far[r]:
+            return False
+        for w in range(lay.wpr):
+            m = cols * lay.rep[w]
+            if (sc.covered[r * lay.wpr + w] & m) != m:
+                return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _layer(layers, f):
+    """The layer of a stored opaque feature: the background's is below every polygon's."""
+    return layers[f] if f >= 0 else -1
+
+
+# Inlined: called once per list entry, and a call passes every array of its groups.
+@njit(cache=True, inline="always")
+def _coverage(p, full, box, tx0, ty0, screen, edges, off_fixed, sc, lay):
+    """Polygon p's coverage of its box in the sub-area as masks in sc.cw (rows of the box),
+    a row of samples at a time; False if it covers no sample there.
+
+    Only the edges that some sample of the box lies outside take part (an edge whose worst
+    box corner is inside is inside everywhere: affine). Each row's covered run is solved
+    exactly per edge in integers: edge j less its top-left bias at the k-th sample of the row
+    is e0 + step k (step = ia SUBPIXEL), inside iff >= 0, so each edge bounds k from one side
+    (_first_inside: a floating-point quotient corrected in integers, no integer division).
+    """
+    lx0, lx1, ly0, ly1 = box
+    ia, ib, ic, bias = edges.ia, edges.ib, edges.ic, edges.bias
+    ext = lay.extent
+    n_act = 0
+    if not full:
+        px_lo = lx0 * SUBPIXEL + ext[0]
+        px_hi = lx1 * SUBPIXEL + ext[1]
+        py_lo = ly0 * SUBPIXEL + ext[2]
+        py_hi = ly1 * SUBPIXEL + ext[3]
+        for j in range(screen.start[p], screen.start[p + 1]):
+            px = px_lo if ia[j] > 0 else px_hi
+            py = py_lo if ib[j] > 0 else py_hi
+            if ia[j] * px + ib[j] * py + ic[j] < bias[j]:
+                sc.act[n_act] = j
+                sc.e_step[n_act] = ia[j] * SUBPIXEL
+                # Guard: only read where the step is not 0.
+                sc.e_inv[n_act] = 1.0 / sc.e_step[n_act] if ia[j] != 0 else 0.0
+                n_act += 1
+    wpr = lay.wpr
+    for i in range((ly0 - ty0) * wpr, (ly1 - ty0 + 1) * wpr):
+        sc.cw[i] = 0
+    span = lx1 - lx0
+    any_bit = False
+    for s in range(off_fixed.shape[0]):
+        ox = off_fixed[s, 0]
+        oy = off_fixed[s, 1]
+        word = s // lay.spw
+        shift = (s % lay.spw) * lay.size + lx0 - tx0
+        px0 = lx0 * SUBPIXEL + ox
+        for y in range(ly0, ly1 + 1):
+            py = y * SUBPIXEL + oy
+            klo = 0
+            khi = span
+            for q in range(n_act):
+                j = sc.act[q]
+                e0 = ia[j] * px0 + ib[j] * py + ic[j] - bias[j]
+                step = sc.e_step[q]
+                if e0 < 0 and step <= 0:
+                    khi = -1  # outside at k = 0 and not rising: outside on the whole row
+                    break
+                if step > 0:
+                    if e0 < 0:
+                        klo = max(klo, _first_inside(e0, step, sc.e_inv[q]))
+                elif step < 0:
+                    khi = min(khi, _first_inside(-e0 - 1, -step, -sc.e_inv[q]) - 1)
+            if klo <= khi:
+                sc.cw[(y - ty0) * wpr + word] |= low_bits(khi - klo + 1) << np.uint64(shift + klo)
+                any_bit = True
+    return any_bit
+
+
+@njit(cache=True, inline="always")
+def _first_inside(e0, step, inv):
+    """The least k >= 0 with e0 + step k >= 0, for e0 < 0 < step (inv = 1 / step): ceil(-e0 /
+    step), estimated in float64 and made exact by integer checks (|e0| < 2**50, so the
+    estimate is off by at most one either way)."""
+    k = np.int64(math.ceil(-e0 * inv))
+    if e0 + step * k < 0:
+        k += 1
+    elif k > 0 and e0 + step * (k - 1) >= 0:
+        k -= 1
+    return k
+
+
+# Inlined: called once per list entry, and a call passes every array of its groups.
+@njit(cache=True, inline="always")
+def _merge_opaque(p, plane, bound, box, origin, off_fixed, layers, sc, lay):
+    """Merge opaque polygon p's coverage (sc.cw) into the store of a sub-area with no
+    translucency: uncovered samples take it outright, covered ones only where it is nearer
+    (tested only in rows where the order is ambiguous). Returns the number of samples newly
+    covered, or -1 if no sample changed.
+
+    plane: (a, b, c, layer), 1/z = a sx + b sy + c; bound: its largest 1/z (with margin);
+    box: (lx0, lx1, ly0, ly1) its pixels in the sub-area; origin: (tx0, ty0, tw).
+    """
+    a, b, c, lay_p = plane
+    ly0, ly1 = box[2], box[3]
+    ty0 = origin[1]
+    low = _plane_floor(a, b, c, box)
+    added = 0
+    changed = False
+    wpr = lay.wpr
+    for y in range(ly0, ly1 + 1):
+        r = y - ty0
+        compare = bound >= sc.row_far[r]
+        won_any = np.uint64(0)
+        won_all = ~np.uint64(0)
+        for w in range(wpr):
+            idx = r * wpr + w
+            cov = sc.cw[idx]
+            old = sc.covered[idx]
+            new = cov & ~old
+            won = new
+            if new != 0:
+                sc.covered[idx] = old | new
+                added += bit_count(new)
+                _take(p, a, b, c, new, r, w, origin, off_fixed, sc, lay)
+            if compare:
+                amb = cov & old
+                if amb != 0:
+                    won |= _contest(p, a, b, c, lay_p, amb, r, w, origin, off_fixed, layers,
+                                    sc, lay)
+            won_any, won_all = _fold(won, w, won_any, won_all, off_fixed.shape[0], lay)
+        if won_any != 0:
+            sc.row_far[r] = min(sc.row_far[r], low)
+            sc.mixed[r] = (sc.mixed[r] | won_any) & ~won_all
+            changed = True
+    return added if changed else -1
+
+
+@njit(cache=True, inline="always")
+def _plane_floor(a, b, c, box):
+    """A lower bound of a b c's 1/z over the box's samples (affine: least at a corner of the
+    pixel rectangle, which holds every sample), less a relative 1e-9 for rounding."""
+    lx0, lx1, ly0, ly1 = box
+    v = c + min(a * lx0, a * (lx1 + 1)) + min(b * ly0, b * (ly1 + 1))
+    return v - abs(v) * 1e-9
+
+
+@njit(cache=True, inline="always")
+def _take(p, a, b, c, bits, r, w, origin, off_fixed, sc, lay):
+    """Samples `bits` of word w of row r hold nothing yet: polygon p takes them, a run of
+    pixels at a time (a convex polygon's row is one run)."""
+    tx0, ty0, tw = origin
+    s_count = off_fixed.shape[0]
+    inv_sub = 1.0 / SUBPIXEL
+    y = ty0 + r
+    for slot in range(lay.spw):
+        s = w * lay.spw + slot
+        if s >= s_count:
+            break
+        m = (bits >> np.uint64(slot * lay.size)) & low_bits(lay.size)
+        if m == 0:
+            continue
+        ox = off_fixed[s, 0]
+        # Same expression, same order everywhere: a * sx + (b * sy + c) is evaluated
+        # identically for every feature, so coplanar ties stay exact.
+        fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
+        base = r * tw * s_count + s
+        while m != 0:
+            x0 = lowest_bit(m)
+            run = lowest_bit(~(m >> np.uint64(x0)))
+            for x in range(x0, x0 + run):
+                i = base + x * s_count
+                sc.o_iz[i] = a * (((tx0 + x) * SUBPIXEL + ox) * inv_sub) + fy
+                sc.o_id[i] = p
+            m &= ~(low_bits(run) << np.uint64(x0))
+
+
+@njit(cache=True, inline="always")
+def _fold(bits, w, any_px, all_px, s_count, lay):
+    """(any_px, all_px) updated with word w of a row's sample masks: the pixel columns where
+    any, and where every, sample of the row is in bits (fold over the samples' slots)."""
+    cols = low_bits(lay.size)
+    for slot in range(lay.spw):
+        if w * lay.spw + slot >= s_count:
+            break
+        m = (bits >> np.uint64(slot * lay.size)) & cols
+        any_px |= m
+        all_px &= m
+    return any_px, all_px
+
+
+@njit(cache=True, inline="always")
+def _contest(p, a, b, c, lay_p, bits, r, w, origin, off_fixed, layers, sc, lay):
+    """Samples `bits` of word w of row r hold an opaque feature: polygon p replaces it where
+    it is nearer. Returns the samples it won (a mask like bits)."""
+    tx0, ty0, tw = origin
+    s_count = off_fixed.shape[0]
+    inv_sub = 1.0 / SUBPIXEL
+    y = ty0 + r
+    won = np.uint64(0)
+    for slot in range(lay.spw):
+        s = w * lay.spw + slot
+        if s >= s_count:
+            break
+        m = (bits >> np.uint64(slot * lay.size)) & low_bits(lay.size)
+        if m == 0:
+            continue
+        ox = off_fixed[s, 0]
+        fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
+        base = r * tw * s_count + s
+        while m != 0:
+            x = lowest_bit(m)
+            m &= m - np.uint64(1)
+            i = base + x * s_count
+            iz = a * (((tx0 + x) * SUBPIXEL + ox) * inv_sub) + fy
+            f = sc.o_id[i]
+            if _nearer(iz, lay_p, p, sc.o_iz[i], _layer(layers, f), f):
+                sc.o_iz[i] = iz
+                sc.o_id[i] = p
+                won |= np.uint64(1) << np.uint64(slot * lay.size + x)
+    return won
+
+
+@borrowing
+def _merge_general(p, plane, opaque, bound, box, origin, off_fixed, layers, sc, lay):
+    """Merge polygon p's coverage (sc.cw) into the store of a sub-area with translucency, a
+    sample at a time (_sample): an opaque feature takes or contests samples as in
+    _merge_opaque and hides the translucent ones behind it; a translucent one enters the
+    sample's list of nearer translucent features. Rows where every covered sample is nearer
+    than p skip their covered samples. Returns (samples newly covered or -1 if no opaque
+    sample changed, translucent features dropped from a full list)."""
+    a, b, c, lay_p = plane
+    ly0, ly1 = box[2], box[3]
+    tx0, ty0, tw = origin
+    low = _plane_floor(a, b, c, box)
+    s_count = off_fixed.shape[0]
+    inv_sub = 1.0 / SUBPIXEL
+    k_max = sc.t_iz.shape[1]
+    added = 0
+    changed = False
+    dropped = 0
+    wpr = lay.wpr
+    for y in range(ly0, ly1 + 1):
+        r = y - ty0
+        compare = bound >= sc.row_far[r]
+        wrote = False
+        for w in range(wpr):
+            idx = r * wpr + w
+            cov = sc.cw[idx]
+            old = sc.covered[idx]
+            bits = cov if compare else cov & ~old
+            if bits == 0:
+                continue
+            # Pixels that see translucency are shaded a sample at a time whatever their opaque
+            # samples hold: whatever this feature touches is marked mixed and stays so.
+            touched, _ = _fold(bits, w, np.uint64(0), np.uint64(0), s_count, lay)
+            sc.mixed[r] |= touched
+            if opaque:
+                new = cov & ~old
+                sc.covered[idx] = old | new
+                added += bit_count(new)
+            for slot in range(lay.spw):
+                s = w * lay.spw + slot
+                if s >= s_count:
+                    break
+                m = (bits >> np.uint64(slot * lay.size)) & low_bits(lay.size)
+                held = (old >> np.uint64(slot * lay.size)) & low_bits(lay.size)
+                ox = off_fixed[s, 0]
+                fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
+                base = r * tw * s_count + s
+                while m != 0:
+                    x = lowest_bit(m)
+                    m &= m - np.uint64(1)
+                    i = base + x * s_count
+                    iz = a * (((tx0 + x) * SUBPIXEL + ox) * inv_sub) + fy
+                    f = sc.o_id[i]
+                    if ((held >> np.uint64(x)) & np.uint64(1)) != 0 and not _nearer(
+                            iz, lay_p, p, sc.o_iz[i], _layer(layers, f), f):
+                        continue
+                    if opaque:
+                        sc.o_iz[i] = iz
+                        sc.o_id[i] = p
+                        wrote = True
+                        # Translucent features now behind the opaque one are hidden.
+                        n_t = sc.t_cnt[i]
+                        while n_t > 0 and not _nearer(sc.t_iz[i, n_t - 1], sc.t_lay[i, n_t - 1],
+                                                      sc.t_id[i, n_t - 1], iz, lay_p, p):
+                            n_t -= 1
+                        sc.t_cnt[i] = n_t
+                    else:
+                        n_t = sc.t_cnt[i]
+                        pos = n_t
+                        while pos > 0 and _nearer(iz, lay_p, p, sc.t_iz[i, pos - 1],
+                                                  sc.t_lay[i, pos - 1], sc.t_id[i, pos - 1]):
+                            pos -= 1
+                        if n_t == k_max:
+                            # Store full: the farthest of the K + 1 is dropped (it is the
+                            # one seen through all the others).
+                            dropped += 1
+                            if pos == k_max:
+                                continue
+                            n_t -= 1
+                        for q in range(n_t, pos, -1):
+                            sc.t_iz[i, q] = sc.t_iz[i, q - 1]
+                            sc.t_id[i, q] = sc.t_id[i, q - 1]
+                            sc.t_lay[i, q] = sc.t_lay[i, q - 1]
+                        sc.t_iz[i, pos] = iz
+                        sc.t_id[i, pos] = p
+                        sc.t_lay[i, pos] = lay_p
+                        sc.t_cnt[i] = n_t + 1
+        if wrote:
+            sc.row_far[r] = min(sc.row_far[r], low)
+            changed = True
+    return (added if changed else -1), dropped
 
 
 @borrowing
@@ -342,86 +707,6 @@ def _write_store(tx0, ty0, tx1, ty1, backdrop, frame, background, out, sc):
                         out.trans[y, x, s, q] = sc.t_id[i, q]
             if out.want_range:
                 out.range_m[y, x] = near_range
-
-
-@njit(cache=True, inline="always")
-def _row_span(exact, s0, n_edges, e_step, px0, py, span):
-    """(first, last) k in 0..span with the sample at px0 + k * SUBPIXEL, py inside every edge
-    (first > last if none): the covered run of one row of samples, solved exactly per edge.
-
-    exact: (ia, ib, ic, bias), the integer edge functions; edges s0 .. s0 + n_edges - 1.
-    Edge j's value at the k-th sample, less its top-left bias, is e0 + step * k in integers
-    (step = ia * SUBPIXEL, e_step), inside iff >= 0, so each edge bounds k from one side.
-    """
-    ia, ib, ic, bias = exact
-    klo = 0
-    khi = span
-    for j in range(n_edges):
-        e0 = ia[s0 + j] * px0 + ib[s0 + j] * py + ic[s0 + j] - bias[s0 + j]
-        step = e_step[j]
-        if step > 0:
-            if e0 < 0:
-                klo = max(klo, (step - 1 - e0) // step)  # ceil(-e0 / step), both positive
-        elif step < 0:
-            if e0 < 0:
-                return 1, 0
-            khi = min(khi, e0 // -step)  # floor(e0 / -step); guard: step != 0 here
-        elif e0 < 0:
-            return 1, 0
-    return klo, khi
-
-
-@borrowing
-def _cover_opaque(p, full, plane, rows, box, origin, exact, off_fixed, sc):
-    """Depth-test one opaque polygon into the store of a sub-area with no translucency.
-
-    plane: (a, b, c, layer), 1/z = a sx + b sy + c; rows: (s0, s1), its edges; box: (lx0,
-    lx1, ly0, ly1) the pixels of the sub-area its bounds reach; origin: (tx0, ty0, tw) of the
-    sub-area. Returns the number of samples newly covered, or -1 if no sample changed.
-    """
-    a, b, c, lay = plane
-    s0 = rows[0]
-    n_edges = rows[1] - s0
-    lx0, lx1, ly0, ly1 = box
-    tx0, ty0, tw = origin
-    s_count = off_fixed.shape[0]
-    inv_sub = 1.0 / SUBPIXEL
-    o_iz, o_id, o_lay, e_step = sc.o_iz, sc.o_id, sc.o_lay, sc.e_step
-    if not full:
-        for j in range(n_edges):
-            e_step[j] = exact[0][s0 + j] * SUBPIXEL
-    added = 0
-    changed = False
-    span = lx1 - lx0
-    for s in range(s_count):
-        ox = off_fixed[s, 0]
-        oy = off_fixed[s, 1]
-        for y in range(ly0, ly1 + 1):
-            py = y * SUBPIXEL + oy
-            klo = 0
-            khi = span
-            if not full:
-                klo, khi = _row_span(exact, s0, n_edges, e_step, lx0 * SUBPIXEL + ox, py, span)
-                if klo > khi:
-                    continue
-            row = ((y - ty0) * tw - tx0) * s_count + s
-            fy = b * (py * inv_sub) + c
-            for x in range(lx0 + klo, lx0 + khi + 1):
-                px = x * SUBPIXEL + ox
-                i = row + x * s_count
-                # Same expression, same order as in _tile: a * sx + (b * sy + c) is evaluated
-                # identically for every feature, so coplanar ties stay exact.
-                iz = a * (px * inv_sub) + fy
-                f = o_id[i]
-                if f != -1 and not _nearer(iz, lay, p, o_iz[i], o_lay[i], f):
-                    continue
-                if f == -1:
-                    added += 1
-                o_iz[i] = iz
-                o_id[i] = p
-                o_lay[i] = lay
-                changed = True
-    return added if changed else -1
 
 
 @njit(cache=True, inline="always")

@@ -44,7 +44,7 @@ from channel_worker.pipeline.resolve.resolve import area_coverage
 from channel_worker.pipeline.resolve.shading import shading
 from services.rig.options import RenderOptions
 
-from ._visibility_kernels import StoreOut, coverage_kernel, visibility_kernel
+from ._visibility_kernels import StoreOut, coverage_kernel, mask_layout, visibility_kernel
 
 
 def sample_store(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameConstants,
@@ -62,7 +62,7 @@ def sample_store(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameC
         options: max_translucent (K, translucent features kept per sample) and with_range
             (compute polygon_range; else it is None and costs nothing).
         counters: receives the stage's counters (Bins.counters(), "translucent_dropped",
-            "entries_skipped_by_depth").
+            "entries_skipped_by_depth", "entries_hidden").
     """
     k = options.max_translucent
     h, w, s = frame.height, frame.width, frame.offsets.shape[0]
@@ -76,7 +76,7 @@ def sample_store(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameC
     n_tiles = bins.tiles_x * bins.tiles_y
     out = StoreOut(False, with_range, any_translucent, opaque, trans, count, polygon_range,
                    np.empty((1, 1, 3), np.float32), np.zeros(n_tiles, np.int64),
-                   np.zeros(n_tiles, np.int64))
+                   np.zeros(n_tiles, np.int64), np.zeros(n_tiles, np.int64))
     _run(screen, edges, bins, frame, background, out, counters, coverage_group(False, screen, None))
     return SampleBuffer(offsets=frame.offsets, opaque=opaque, translucent=trans,
                         translucent_count=count,
@@ -103,7 +103,7 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: Fram
     pixels = StoreOut(True, options.with_range, bool((screen.opacity < 1.0).any()),
                       np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),
                       np.empty((1, 1, 1), np.uint8), range_m, rgb, np.zeros(n_tiles, np.int64),
-                      np.zeros(n_tiles, np.int64))
+                      np.zeros(n_tiles, np.int64), np.zeros(n_tiles, np.int64))
     cov = coverage_group(area_coverage(options, frame.offsets.shape[0]), screen, edges)
     _run(screen, edges, bins, frame, background, pixels, counters, cov)
     return Image(rgb=rgb, range_m=range_m if options.with_range else None)
@@ -114,10 +114,11 @@ def _run(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameConstants
     # Layers as int32, like the store's: one integer type in every depth comparison.
     visibility_kernel(bins, screen._replace(layer=screen.layer.astype(np.int32)), edges, frame,
                       background, shading(screen, frame, background), out, numba.get_num_threads(),
-                      cov)
+                      cov, mask_layout(bins.size, frame.offsets_fixed))
     counters.update(bins.counters())
     counters["translucent_dropped"] = int(out.dropped.sum())
     counters["entries_skipped_by_depth"] = int(out.stopped.sum())
+    counters["entries_hidden"] = int(out.hidden.sum())
 
 
 def coverage_counts(screen: ScreenPolygons, width: int, height: int, offsets: np.ndarray, *,
