@@ -66,3 +66,76 @@ def quads_scene_doc(count: int = 200, seed: int = 2027, sky: str = "#3060c0") ->
         "models": {"quads": quads_model(count, seed)},
         "instances": [{"model": "quads", "position": [0.0, 0.0, 1.5]}],
     }
+
+
+#: The overdraw scenes' channel: 1280 x 1024 pixels across OVERDRAW_FOV_DEG (square pixels).
+OVERDRAW_SIZE = (1280, 1024)
+OVERDRAW_FOV_DEG = 60.0
+
+
+def overdraw_model(depth_complexity: float, *, count: int = 10_000, translucent: float = 0.0,
+                   seed: int = 2028, width: int = OVERDRAW_SIZE[0],
+                   height: int = OVERDRAW_SIZE[1], fov_deg: float = OVERDRAW_FOV_DEG) -> dict:
+    """`count` eye-facing convex quads whose projected areas add up to `depth_complexity` times
+    the picture, in random depth order: the overdraw scene of bench_visibility.py.
+
+    Sizes are log-uniform over a factor of 30 (small and large quads together), then scaled
+    by one common factor so that the summed screen area is depth_complexity * width * height
+    (area of the quad in the plane z = 1, times the focal length in pixels squared). Centres
+    are uniform over the view, so a large quad may reach past the picture's edge. Depths are
+    20 + 0.25 k metres for a shuffled k, as in quads_model: distinct, so the visibility order
+    is known and the exact-coverage reference applies. A fraction `translucent` of the quads
+    (chosen at random) has opacity uniform in 0.3..0.8; the rest are opaque.
+    """
+    rng = np.random.default_rng(seed)
+    tan_h = np.tan(np.radians(fov_deg / 2.0))
+    tan_v = tan_h * height / width
+    focal = width / (2.0 * tan_h)
+    depth = 20.0 + 0.25 * rng.permutation(count)
+    size = np.exp(rng.uniform(np.log(1.0), np.log(30.0), count))
+    ratio = rng.uniform(0.3, 1.0, count)
+    turn = rng.uniform(0.0, np.pi, count)
+    gaps = 0.3 + rng.dirichlet(np.ones(4), count) * (2.0 * np.pi - 4 * 0.3)
+    angles = rng.uniform(0.0, 2.0 * np.pi, count)[:, None] + np.cumsum(gaps, axis=1)
+    u = np.cos(angles) * size[:, None]
+    v = np.sin(angles) * (size * ratio)[:, None]
+    c, s = np.cos(turn)[:, None], np.sin(turn)[:, None]
+    pu, pv = c * u - s * v, s * u + c * v
+    # Shoelace area of each quad at unit size in the plane z = 1 (angles are increasing: > 0).
+    area = 0.5 * np.abs(np.sum(pu * np.roll(pv, -1, 1) - np.roll(pu, -1, 1) * pv, axis=1))
+    scale = np.sqrt(depth_complexity * width * height / (area.sum() * focal * focal))
+    centre = rng.uniform([-tan_h, -tan_v], [tan_h, tan_v], (count, 2))
+    see_through = rng.random(count) < translucent
+    alpha = rng.uniform(0.3, 0.8, count)
+    colours = rng.integers(0, 256, (count, 3))
+    verts: list[list[float]] = []
+    faces: list[dict] = []
+    for k in range(count):
+        d = float(depth[k])
+        q = np.stack([(centre[k, 0] + scale * pu[k]) * d, (centre[k, 1] + scale * pv[k]) * d,
+                      np.full(4, d)], axis=1)
+        # Counter-clockwise seen from the eye at the origin: the normal points back at it.
+        if np.dot(np.cross(q[1] - q[0], q[2] - q[0]), q[0]) > 0:
+            q = q[::-1]
+        face: dict = {"indices": list(range(len(verts), len(verts) + 4)),
+                      "colour": "#" + "".join(f"{int(x):02x}" for x in colours[k])}
+        if see_through[k]:
+            face["opacity"] = round(float(alpha[k]), 3)
+        faces.append(face)
+        verts += q.tolist()
+    return {"vertices": verts, "faces": faces}
+
+
+def overdraw_scene_doc(depth_complexity: float, *, translucent: float = 0.0, count: int = 10_000,
+                       seed: int = 2028, sky: str = "#3060c0") -> dict:
+    """overdraw_model's quads overhead, for an eye at QUADS_EYEPOINT looking straight up, at
+    OVERDRAW_SIZE across OVERDRAW_FOV_DEG."""
+    return {
+        "format": "ig-scene/1",
+        "sky": {"colour": sky},
+        "earth": {"colour": "#406020", "height_m": 0.0},
+        "lighting": {"ambient": 1.0},
+        "models": {"quads": overdraw_model(depth_complexity, count=count, translucent=translucent,
+                                           seed=seed)},
+        "instances": [{"model": "quads", "position": [0.0, 0.0, 1.5]}],
+    }

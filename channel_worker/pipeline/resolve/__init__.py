@@ -1,2 +1,2 @@
-"""Resolve stage: the shading of one sample (shading.py) and the filtering of samples into
-pixels (resolve.py)."""
+"""Resolve stage: the filtering of a frame's sample store into pixels (resolve.py); the
+shading of one sample is shade/."""

@@ -15,11 +15,12 @@ from channel_worker.pipeline.contract import (
     ScreenPolygons,
     rgb_array,
 )
+from channel_worker.pipeline.shade.group import COVERAGES, area_coverage, shade_frame
 from services.rig.options import RenderOptions
 
-from ._coverage_kernels import coverage_group
 from ._resolve_kernels import StoreIn, box_kernel, filter_kernel, shade_kernel
-from .shading import shading
+
+__all__ = ["COVERAGES", "FILTERS", "area_coverage", "filter_weights", "resolve"]
 
 
 def _box(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
@@ -55,18 +56,6 @@ def filter_weights(name: str, offsets: np.ndarray) -> np.ndarray:
     return FILTERS[name](dx, dy)
 
 
-#: The coverage rules registered in services.rig.options.COVERAGES: whether a pixel one edge
-#: crosses takes the exact area inside it (_coverage_kernels) or its samples' count.
-COVERAGES: dict[str, bool] = {"area": True, "samples": False}
-
-
-def area_coverage(options: RenderOptions, samples: int) -> bool:
-    """Whether single-edge pixels take their exact area: coverage "area" with the box filter
-    (the wider filters weigh samples of neighbouring pixels, which an area does not say) and
-    at least two samples (one sample never sees two features)."""
-    return COVERAGES[options.coverage] and options.filter == "box" and samples >= 2
-
-
 def resolve(buffer: SampleBuffer, screen: ScreenPolygons, frame: FrameConstants,
             background: Background, options: RenderOptions, *, edges: Edges | None = None,
             out: np.ndarray | None = None) -> Image:
@@ -100,12 +89,11 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, frame: FrameConstants,
     store = StoreIn(buffer.opaque, buffer.translucent.reshape(-1, k), buffer.translucent_count,
                     polygon_range, want_range, buffer.opaque.reshape(-1),
                     buffer.translucent_count.reshape(-1))
-    sh = shading(screen, frame, background)
+    sf = shade_frame(screen, frame, background, options, edges)
     if options.filter == "box":
-        cov = coverage_group(area_coverage(options, buffer.offsets.shape[0]), screen, edges)
-        box_kernel(store, frame, background, sh, rgb, range_m, cov)
+        box_kernel(store, *sf, rgb, range_m)
     else:
         samples = np.empty(buffer.opaque.shape + (3,), np.float32)
-        shade_kernel(store, frame, background, sh, samples, range_m)
+        shade_kernel(store, sf.frame, sf.background, sf.sh, samples, range_m)
         filter_kernel(samples, filter_weights(options.filter, buffer.offsets), rgb)
     return Image(rgb=rgb, range_m=range_m if want_range else None)

@@ -10,8 +10,10 @@ from numba import njit, prange
 
 from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, SKY_ID, SUBPIXEL
 from channel_worker.pipeline.jit import bit_count, borrowing, lanes, low_bits, lowest_bit
-from channel_worker.pipeline.resolve._resolve_kernels import box_subarea
-from channel_worker.pipeline.resolve.shading import sample_point
+from channel_worker.pipeline.shade._box_kernels import box_subarea
+from channel_worker.pipeline.shade.group import ShadeFrame
+from channel_worker.pipeline.shade.scratch import Scratch
+from channel_worker.pipeline.shade.shading import sample_point
 
 #: Relative margin on the early stop of a sub-area list: 1/z at a sample inside a polygon
 #: can exceed the polygon's largest vertex 1/z only by rounding (~1e-16 relative).
@@ -50,77 +52,6 @@ class StoreOut(NamedTuple):
     hidden: np.ndarray
 
 
-class Scratch(NamedTuple):
-    """One thread's sample store for a sub-area (sample i of the sub-area: ((y - ty0) * tw +
-    (x - tx0)) * S + s): the nearest opaque feature's 1/z and identity, the nearer translucent
-    ones (nearest first: 1/z, identity, layer) and their count; the coverage masks (MaskLayout:
-    word r * wpr + w of row r) of the samples that hold an opaque feature (covered) and of the
-    feature being read (cw); per row, a lower bound of the stored opaque 1/z (row_far); and the
-    current feature's edges that cross the sub-area (act: edge rows, e_step: their steps,
-    e_inv: 1 / e_step); per row, the pixel columns whose samples may not all see one thing
-    (mixed: the others see one opaque feature, or nothing, with every sample). o_id is -1
-    where no opaque feature is held only once the list is read (_mark_uncovered): the masks
-    say which samples hold one."""
-
-    o_iz: np.ndarray
-    o_id: np.ndarray
-    t_iz: np.ndarray
-    t_id: np.ndarray
-    t_lay: np.ndarray
-    t_cnt: np.ndarray
-    e_step: np.ndarray
-    e_inv: np.ndarray
-    act: np.ndarray
-    covered: np.ndarray
-    cw: np.ndarray
-    row_far: np.ndarray
-    mixed: np.ndarray
-
-
-class MaskLayout(NamedTuple):
-    """How a sub-area's samples are held as bit masks (N. Greene, "Hierarchical polygon tiling
-    with coverage masks", SIGGRAPH 96: coverage as words, combined 64 samples at a time).
-
-    One sample of one row of a sub-area is `size` bits (bit x for pixel column x of the
-    sub-area); a 64-bit word holds `spw` such sample rows of the same pixel row, so a row of
-    the sub-area is `wpr` words, sample s in word s // spw at bit (s % spw) * size + x.
-    size <= 64 (RenderOptions.subarea).
-
-    Attributes:
-        size, spw, wpr: as above.
-        rep: (wpr,) uint64 with bit slot * size set for every sample slot word w holds: a
-            pixel-column mask times rep[w] is that column range at every sample of the word.
-        extent: (4,) int64 the smallest and largest x offset, then y offset, of the pattern's
-            samples (1/SUBPIXEL units from the pixel's corner).
-    """
-
-    size: int
-    spw: int
-    wpr: int
-    rep: np.ndarray
-    extent: np.ndarray
-
-
-def mask_layout(size: int, off_fixed: np.ndarray) -> MaskLayout:
-    """The MaskLayout of sub-areas of `size` pixels and the pattern off_fixed ((S, 2) int64).
-
-    Raises:
-        ValueError: size outside 1..64 (a sample row of a sub-area must fit one word).
-    """
-    if not 1 <= size <= 64:
-        raise ValueError(f"subarea: must be 1..64 pixels (one sample row in a 64-bit mask), "
-                         f"got {size}")
-    s_count = off_fixed.shape[0]
-    spw = max(1, min(s_count, 64 // size))
-    wpr = -(-s_count // spw)
-    rep = np.zeros(wpr, np.uint64)
-    for s in range(s_count):
-        rep[s // spw] |= np.uint64(1) << np.uint64((s % spw) * size)
-    extent = np.array([off_fixed[:, 0].min(), off_fixed[:, 0].max(), off_fixed[:, 1].min(),
-                       off_fixed[:, 1].max()], np.int64)
-    return MaskLayout(size, spw, wpr, rep, extent)
-
-
 @njit(cache=True, inline="always")
 def _inside(px, py, rows, exact):
     """Exact edge test of sample (px, py) (1/SUBPIXEL units) against polygon edges
@@ -144,7 +75,7 @@ def _nearer(iz, lay, idx, ref_iz, ref_lay, ref_idx):
 
 
 @njit(cache=True, parallel=True)
-def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads, cov, lay):
+def visibility_kernel(bins, screen, edges, frame, background, sh, cov, out, threads, lay):
     """Per sub-area: the nearest opaque feature and the nearer translucent ones per sample.
 
     Sub-areas run in parallel, each with its own small sample store that stays in cache.
@@ -157,10 +88,11 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads, 
     first; reading stops once every sample holds an opaque feature nearer than the nearest
     point of the next feature (with the list order it skips all the rest).
 
-    bins, screen, edges, frame, background: the contract's values (Bins, ScreenPolygons,
-    Edges, FrameConstants, Background); sh: the frame's Shading (resolve.shading), used on the
-    fused path; out: StoreOut; threads: numba.get_num_threads() (jit.lanes); cov: the frame's
-    Coverage (resolve._coverage_kernels), read by the fused box filter; lay: the MaskLayout.
+    bins, screen, edges: the contract's values (Bins, ScreenPolygons, Edges); frame,
+    background, sh, cov: the parts of the frame's ShadeFrame (shade.group; a parallel kernel
+    takes them apart because numba 0.68's parfor lowering cannot rebuild a group of groups
+    inside the loop); out: StoreOut; threads: numba.get_num_threads() (jit.lanes); lay: the
+    MaskLayout (shade.scratch).
 
     With a background (background.on) every sample starts out holding it as its nearest opaque
     feature (BACKGROUND_ID at background.inv_z, nothing where that is 0), so polygons behind
@@ -189,20 +121,23 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, out, threads, 
                      np.empty(max_edges, np.int64), np.zeros(n_words, np.uint64),
                      np.zeros(n_words, np.uint64), np.empty(bins.size, np.float64),
                      np.zeros(bins.size, np.uint64))
-        _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc, cov, lay)
+        _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, cov, out, sc, lay)
 
 
 @borrowing
-def _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, out, sc, cov, lay):
-    """The sub-areas of visibility_kernel's lane: rows lane, lane + n_lanes, ..."""
+def _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, cov, out, sc, lay):
+    """The sub-areas of visibility_kernel's lane: rows lane, lane + n_lanes, ... (frame,
+    background, sh, cov: the ShadeFrame's parts)."""
+    sf = ShadeFrame(frame, background, sh, cov)
     for row in range(lane, bins.tiles_y, n_lanes):
         for t in range(row * bins.tiles_x, (row + 1) * bins.tiles_x):
-            _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov, lay)
+            _tile(t, bins, screen, edges, sf, out, sc, lay)
 
 
 @borrowing
-def _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov, lay):
+def _tile(t, bins, screen, edges, sf, out, sc, lay):
     """One sub-area of visibility_kernel, with the lane's sample store sc as scratch."""
+    frame, background = sf.frame, sf.background
     tx0, ty0, tx1, ty1 = _subarea_rect(t, bins.tiles_x, bins.size, frame.width, frame.height)
     tw = tx1 - tx0
     s_count = frame.offsets_fixed.shape[0]
@@ -282,8 +217,8 @@ def _tile(t, bins, screen, edges, frame, background, sh, out, sc, cov, lay):
     if covered < n:
         _mark_uncovered(tw, ty1 - ty0, s_count, sc, lay)
     if out.fused:
-        box_subarea((tx0, ty0, tx1, ty1), backdrop, frame, background, sh, any_translucent,
-                    out.want_range, sc, out.rgb, out.range_m, cov, cov.on and partial)
+        box_subarea(sf, (tx0, ty0, tx1, ty1), backdrop, any_translucent, out.want_range, sc,
+                    out.rgb, out.range_m, sf.cov.on and partial)
     else:
         _write_store(tx0, ty0, tx1, ty1, backdrop, frame, background, out, sc)
 

@@ -39,12 +39,11 @@ from channel_worker.pipeline.contract import (
     rgb_array,
     subpixel_offsets,
 )
-from channel_worker.pipeline.resolve._coverage_kernels import Coverage, coverage_group
-from channel_worker.pipeline.resolve.resolve import area_coverage
-from channel_worker.pipeline.resolve.shading import shading
+from channel_worker.pipeline.shade.group import ShadeFrame, shade_frame
+from channel_worker.pipeline.shade.scratch import mask_layout
 from services.rig.options import RenderOptions
 
-from ._visibility_kernels import StoreOut, coverage_kernel, mask_layout, visibility_kernel
+from ._visibility_kernels import StoreOut, coverage_kernel, visibility_kernel
 
 
 def sample_store(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameConstants,
@@ -77,7 +76,7 @@ def sample_store(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameC
     out = StoreOut(False, with_range, any_translucent, opaque, trans, count, polygon_range,
                    np.empty((1, 1, 3), np.float32), np.zeros(n_tiles, np.int64),
                    np.zeros(n_tiles, np.int64), np.zeros(n_tiles, np.int64))
-    _run(screen, edges, bins, frame, background, out, counters, coverage_group(False, screen, None))
+    _run(screen, edges, bins, out, counters, shade_frame(screen, frame, background, options, None))
     return SampleBuffer(offsets=frame.offsets, opaque=opaque, translucent=trans,
                         translucent_count=count,
                         polygon_range=polygon_range if with_range else None)
@@ -104,17 +103,16 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: Fram
                       np.empty((1, 1, 1), np.int32), np.empty((1, 1, 1, k), np.int32),
                       np.empty((1, 1, 1), np.uint8), range_m, rgb, np.zeros(n_tiles, np.int64),
                       np.zeros(n_tiles, np.int64), np.zeros(n_tiles, np.int64))
-    cov = coverage_group(area_coverage(options, frame.offsets.shape[0]), screen, edges)
-    _run(screen, edges, bins, frame, background, pixels, counters, cov)
+    _run(screen, edges, bins, pixels, counters,
+         shade_frame(screen, frame, background, options, edges))
     return Image(rgb=rgb, range_m=range_m if options.with_range else None)
 
 
-def _run(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: FrameConstants,
-         background: Background, out: StoreOut, counters: dict[str, int], cov: Coverage) -> None:
+def _run(screen: ScreenPolygons, edges: Edges, bins: Bins, out: StoreOut,
+         counters: dict[str, int], sf: ShadeFrame) -> None:
     # Layers as int32, like the store's: one integer type in every depth comparison.
-    visibility_kernel(bins, screen._replace(layer=screen.layer.astype(np.int32)), edges, frame,
-                      background, shading(screen, frame, background), out, numba.get_num_threads(),
-                      cov, mask_layout(bins.size, frame.offsets_fixed))
+    visibility_kernel(bins, screen._replace(layer=screen.layer.astype(np.int32)), edges, *sf, out,
+                      numba.get_num_threads(), mask_layout(bins.size, sf.frame.offsets_fixed))
     counters.update(bins.counters())
     counters["translucent_dropped"] = int(out.dropped.sum())
     counters["entries_skipped_by_depth"] = int(out.stopped.sum())

@@ -100,7 +100,7 @@ def test_registries_are_what_the_pipeline_implements():
     assert set(implemented) == set(FILTERS)
     assert set(coverages) == set(COVERAGES)
     assert set(RENDERERS) == {"subarea", "scanline"}
-    assert set(TEXTURE_FILTERS) == {"fade", "mipmap", "both"}  # resolve/texturing.py reads each
+    assert set(TEXTURE_FILTERS) == {"fade", "mipmap", "both"}  # shade/texturing.py reads each
 
 
 def _parse(argv, **kw):

@@ -1,4 +1,4 @@
-"""Textured and Gouraud-shaded faces as rendered (resolve/texturing.py): continuous across shared
+"""Textured and Gouraud-shaded faces as rendered (shade/texturing.py): continuous across shared
 edges, the same at any screen rotation, anti-aliased against a 64-sample reference."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Analytic edge coverage (RenderOptions.coverage = "area", resolve/_coverage_kernels.py).
+"""Analytic edge coverage (RenderOptions.coverage = "area", shade/_coverage_kernels.py).
 
 - the closed-form area of a line clipping the pixel square, against shapely, on random lines
   and on the awkward ones (parallel to an axis, through a corner, missing the square);
@@ -20,8 +20,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from channel_worker.pipeline.render import render_frame
-from channel_worker.pipeline.resolve._coverage_kernels import square_fraction
 from channel_worker.pipeline.scene.load import demo_scene_path, load_scene, parse_scene
+from channel_worker.pipeline.shade._coverage_kernels import square_fraction
 from channel_worker.testing.coverage_reference import (
     ReferencePixels,
     depth_order,

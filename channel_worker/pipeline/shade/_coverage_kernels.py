@@ -138,15 +138,17 @@ def _seen(f):
 
 
 @njit(cache=True, inline="always")
-def edge_pixel(cov, frame, background, sh, ids, counts, translucent, t_id, base, x, y):
+def edge_pixel(sf, ids, counts, translucent, t_id, base, x, y):
     """(applies, r, g, b): pixel (x, y)'s colour by analytic coverage (the module docstring),
     or applies = False where its samples' estimate stays.
 
+    sf: the frame's ShadeFrame (group.py: its frame, background, Shading and Coverage).
     ids, counts: the pixel's samples' nearest opaque feature and translucent count at
     ids[base + s], counts[base + s] (visibility's Scratch, or the flat sample store), counts
     read only if translucent (the Scratch of a frame without translucency has one count);
     t_id their translucent features (not read: nothing translucent here).
     """
+    cov, frame, background, sh = sf.cov, sf.frame, sf.background, sf.sh
     s_count = frame.offsets_fixed.shape[0]
     f0 = _seen(ids[base])
     f1 = f0
