@@ -3,6 +3,8 @@
     python bench/llvmpipe.py                          # approach scene, 4x MSAA, 1280 x 1024
     python bench/llvmpipe.py --frames 10 --image f.npy --json r.json
     python bench/llvmpipe.py --scene quads            # the random quads, 640 x 480 (SCENES)
+    python bench/llvmpipe.py --scene overdraw4t       # 10,000 quads, depth complexity 4, a quarter
+                                                      # translucent, 1280 x 1024
 
 bench_visibility.py runs this file in a child process (run_llvmpipe()), so that the Mesa
 environment below is set before libEGL loads and a driver crash cannot take the bench down.
@@ -359,12 +361,43 @@ def _quads() -> tuple[Database, ChannelSpec, Eyepoint]:
             ChannelSpec.symmetric("quads", 640, 480, QUADS_FOV_DEG), Eyepoint.of(*QUADS_EYEPOINT))
 
 
+def _overdraw(depth_complexity: float,
+              translucent: float) -> Callable[[], tuple[Database, ChannelSpec, Eyepoint]]:
+    def build() -> tuple[Database, ChannelSpec, Eyepoint]:
+        from channel_worker.pipeline.scene.load import parse_scene
+        from channel_worker.testing.quads import (
+            OVERDRAW_FOV_DEG,
+            OVERDRAW_SIZE,
+            QUADS_EYEPOINT,
+            overdraw_scene_doc,
+        )
+
+        return (parse_scene(overdraw_scene_doc(depth_complexity, translucent=translucent),
+                            source="overdraw"),
+                ChannelSpec.symmetric("overdraw", *OVERDRAW_SIZE, OVERDRAW_FOV_DEG),
+                Eyepoint.of(*QUADS_EYEPOINT))
+
+    return build
+
+
+#: The overdraw scenes (bench_visibility.py's "overdraw" section): name -> (depth complexity,
+#: translucent fraction) of channel_worker/testing/quads.py's overdraw_scene_doc, whose other
+#: arguments keep their defaults (10,000 quads, seed 2028).
+OVERDRAW_SCENES: dict[str, tuple[float, float]] = {
+    "overdraw4": (4.0, 0.0),
+    "overdraw8": (8.0, 0.0),
+    "overdraw4t": (4.0, 0.25),
+    "overdraw8t": (8.0, 0.25),
+}
+
 #: The scenes the child can draw: name -> (database, channel, eyepoint). approach: the
 #: bench's main case (bench/scenes/approach.py); quads: the 200 random eye-facing quads of
-#: channel_worker/testing/quads.py at 640 x 480, whose exact coverage is known.
+#: channel_worker/testing/quads.py at 640 x 480, whose exact coverage is known; the overdraw
+#: scenes at 1280 x 1024.
 SCENES: dict[str, Callable[[], tuple[Database, ChannelSpec, Eyepoint]]] = {
     "approach": _approach,
     "quads": _quads,
+    **{name: _overdraw(*params) for name, params in OVERDRAW_SCENES.items()},
 }
 
 

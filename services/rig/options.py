@@ -62,7 +62,7 @@ TEXTURE_FILTERS: dict[str, str] = {
 }
 
 #: How the box filter weighs a pixel's features (implemented by the resolve stage,
-#: resolve/_coverage_kernels.py). Where one straight edge crosses a pixel the exact area it
+#: shade/_coverage_kernels.py). Where one straight edge crosses a pixel the exact area it
 #: covers is known in closed form; the samples still decide what is seen.
 COVERAGES: dict[str, str] = {
     "area": "the exact area where one edge crosses a pixel between two features, the samples' "
