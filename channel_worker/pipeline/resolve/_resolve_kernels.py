@@ -106,7 +106,7 @@ def _box_row(y, store, sf, out_rgb, out_range):
         cr = cg = cb = 0.0
         base = (y * w + x) * s_count
         if not uniform and sh.textured and one_look(sh, store.opaque_flat, store.count_flat, True,
-                                                     base, s_count):
+                                                    base, s_count, 1):
             # As box_subarea does: once at the pixel's centre, at the samples' mean 1/z.
             iz = 0.0
             for s in range(s_count):
@@ -116,7 +116,7 @@ def _box_row(y, store, sf, out_rgb, out_range):
             cr, cg, cb = centre_colour(sh, frame, f0, iz * inv_s, x, y)
         elif not uniform and cov.on:  # one edge across the pixel: its exact area (coverage "area")
             exact, cr, cg, cb = edge_pixel(sf, store.opaque_flat, store.count_flat, True,
-                                           store.trans, base, x, y)
+                                           store.trans, base, 1, x, y)
         if uniform:
             cr, cg, cb = flat_colour(sh, f0)
         if uniform or exact:

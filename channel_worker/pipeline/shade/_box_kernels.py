@@ -39,7 +39,6 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
     tx0, ty0, tx1, ty1 = rect
     tw = tx1 - tx0
     s_count = frame.offsets_fixed.shape[0]
-    n = tw * (ty1 - ty0) * s_count
     o_id, o_iz, t_id, t_cnt = sc.o_id, sc.o_iz, sc.t_id, sc.t_cnt
     # A sub-area whose every sample sees one thing and nothing translucent (open sky, open
     # ground, the inside of a large face) is one colour: fill it without shading.
@@ -51,10 +50,11 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
             uniform = _MIXED
             break
     if uniform != _MIXED:
-        for i in range(0, n, s_count):
-            if o_id[i] != uniform:
-                uniform = _MIXED
-                break
+        for r in range(ty1 - ty0):
+            for i in range(r * s_count * tw, r * s_count * tw + tw):
+                if o_id[i] != uniform:
+                    uniform = _MIXED
+                    break
     if uniform < 0 and uniform != _MIXED:
         uniform = backdrop if backdrop != 0 else _MIXED
     if sh.by_range or (uniform >= 0 and varies(sh, uniform)):
@@ -71,11 +71,12 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
     inv_s = 1.0 / s_count
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
-            base = ((y - ty0) * tw + (x - tx0)) * s_count
-            if sh.textured and one_look(sh, o_id, t_cnt, any_translucent, base, s_count):
+            # Sample s of the pixel is base + s * tw (scratch.Scratch's layout).
+            base = (y - ty0) * s_count * tw + (x - tx0)
+            if sh.textured and one_look(sh, o_id, t_cnt, any_translucent, base, s_count, tw):
                 iz = 0.0
                 for s in range(s_count):
-                    iz += o_iz[base + s]
+                    iz += o_iz[base + s * tw]
                 cr, cg, cb = centre_colour(sh, frame, o_id[base], iz * inv_s, x, y)
                 out_rgb[y, x, 0] = cr
                 out_rgb[y, x, 1] = cg
@@ -86,7 +87,7 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
                         sx, sy = sample_point(frame, x, y, s)
                         _, _, ray, _, _ = eye_ray(frame, sh, sx, sy)
                         # Guard: polygons are clipped to z >= near > 0, so 1/z > 0.
-                        near_range = min(near_range, ray / o_iz[base + s])
+                        near_range = min(near_range, ray / o_iz[base + s * tw])
                     out_range[y, x] = near_range
                 continue
             if not want_range:
@@ -102,19 +103,19 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
                 # translucent: no need to look at its samples.
                 mixed = (sc.mixed[y - ty0] >> np.uint64(x - tx0)) & np.uint64(1) != 0
                 for s in range(1, s_count if mixed else 1):
-                    if o_id[base + s] != f0 and not (bg_only and o_id[base + s] < 0):
+                    if o_id[base + s * tw] != f0 and not (bg_only and o_id[base + s * tw] < 0):
                         same = False
                         break
                 if same and mixed and any_translucent:
                     for s in range(s_count):
-                        if t_cnt[base + s] != 0:
+                        if t_cnt[base + s * tw] != 0:
                             same = False
                             break
                 if same:
                     if f0 >= 0 and sh.by_range:
                         iz = 0.0
                         for s in range(s_count):
-                            iz += o_iz[base + s]
+                            iz += o_iz[base + s * tw]
                         cr, cg, cb = centre_colour(sh, frame, f0, iz * inv_s, x, y)
                     elif bg_only:
                         cr = background.rgb[y, x, 0]
@@ -130,7 +131,7 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
             # (coverage "area", _coverage_kernels); the range still comes from the samples.
             exact = False
             if area:
-                exact, ar, ag, ab = edge_pixel(sf, o_id, t_cnt, any_translucent, t_id, base, x,
+                exact, ar, ag, ab = edge_pixel(sf, o_id, t_cnt, any_translucent, t_id, base, tw, x,
                                                y)
                 if exact:
                     out_rgb[y, x, 0] = ar
@@ -143,7 +144,7 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
             b = 0.0
             near_range = np.inf
             for s in range(s_count):
-                i = base + s
+                i = base + s * tw
                 # The sample's position and ray only where something needs them: most samples
                 # of a frame without haze, fog or clouds need neither.
                 sx = 0.0
@@ -187,16 +188,16 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
 
 
 @njit(cache=True, inline="always")
-def one_look(sh, ids, counts, translucent, base, s_count):
-    """Every sample of the pixel (ids[base:base + s_count]) sees one polygon whose colour
+def one_look(sh, ids, counts, translucent, base, s_count, stride):
+    """Every sample of the pixel (ids[base + s * stride], s < s_count) sees one polygon whose colour
     varies over it (a texture, Gouraud light), and nothing translucent: like a GPU's
     multisampling, it is then shaded once, at the pixel's centre and footprint (the samples
     still decide coverage; pixels where features meet are shaded per sample)."""
     f0 = ids[base]
     if f0 < 0 or not varies(sh, f0):
         return False
-    for s in range(s_count):  # noqa: SIM110  (numba compiles the loop, not all())
-        if ids[base + s] != f0 or (translucent and counts[base + s] != 0):
+    for s in range(s_count):
+        if ids[base + s * stride] != f0 or (translucent and counts[base + s * stride] != 0):
             return False
     return True
 

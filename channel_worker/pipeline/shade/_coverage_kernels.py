@@ -138,13 +138,14 @@ def _seen(f):
 
 
 @njit(cache=True, inline="always")
-def edge_pixel(sf, ids, counts, translucent, t_id, base, x, y):
+def edge_pixel(sf, ids, counts, translucent, t_id, base, stride, x, y):
     """(applies, r, g, b): pixel (x, y)'s colour by analytic coverage (the module docstring),
     or applies = False where its samples' estimate stays.
 
     sf: the frame's ShadeFrame (group.py: its frame, background, Shading and Coverage).
     ids, counts: the pixel's samples' nearest opaque feature and translucent count at
-    ids[base + s], counts[base + s] (visibility's Scratch, or the flat sample store), counts
+    ids[base + s stride], counts[base + s stride] (visibility's Scratch: stride the sub-area's
+    width; the flat sample store: stride 1), counts
     read only if translucent (the Scratch of a frame without translucency has one count);
     t_id their translucent features (not read: nothing translucent here).
     """
@@ -154,9 +155,9 @@ def edge_pixel(sf, ids, counts, translucent, t_id, base, x, y):
     f1 = f0
     s1 = 0
     for s in range(s_count):
-        if translucent and counts[base + s] != 0:
+        if translucent and counts[base + s * stride] != 0:
             return False, 0.0, 0.0, 0.0
-        f = _seen(ids[base + s])
+        f = _seen(ids[base + s * stride])
         if f == f0:
             continue
         if f1 == f0:
@@ -184,7 +185,7 @@ def edge_pixel(sf, ids, counts, translucent, t_id, base, x, y):
     # A sample that does not see P must lie outside its edge, or something hides part of P.
     ia, ib, ic, bias = cov.ia[j], cov.ib[j], cov.ic[j], cov.bias[j]
     for s in range(s_count):
-        if _seen(ids[base + s]) != p:
+        if _seen(ids[base + s * stride]) != p:
             px = x * SUBPIXEL + frame.offsets_fixed[s, 0]
             py = y * SUBPIXEL + frame.offsets_fixed[s, 1]
             if ia * px + ib * py + ic >= bias:
@@ -203,8 +204,9 @@ def edge_pixel(sf, ids, counts, translucent, t_id, base, x, y):
             behind = EARTH_ID
         else:
             return False, 0.0, 0.0, 0.0
-    pr, pg, pb = _feature_colour(frame, sh, t_id, ids, base, p, x, y, sp)
-    qr, qg, qb = _feature_colour(frame, sh, t_id, ids, base, q if q >= 0 else behind, x, y, sq)
+    pr, pg, pb = _feature_colour(frame, sh, t_id, ids, base, stride, p, x, y, sp)
+    qr, qg, qb = _feature_colour(frame, sh, t_id, ids, base, stride, q if q >= 0 else behind, x,
+                                 y, sq)
     # Area inside P's edge: E = ia X + ib Y + ic over the pixel, in pixel units u, v and
     # divided by SUBPIXEL (the area does not change with the scale): ia u + ib v + E0.
     e0 = ia * (x * SUBPIXEL) + ib * (y * SUBPIXEL) + ic
@@ -214,7 +216,7 @@ def edge_pixel(sf, ids, counts, translucent, t_id, base, x, y):
 
 
 @njit(cache=True, inline="always")
-def _feature_colour(frame, sh, t_id, ids, base, f, x, y, s):
+def _feature_colour(frame, sh, t_id, ids, base, stride, f, x, y, s):
     """Feature f's colour in pixel (x, y) as _colour gives it; a polygon, the sky or the earth
     whose colour varies neither over the pixel nor with range is its flat colour, with no call
     and no sample shaded (most edge pixels: the call alone passes the whole Shading group)."""
@@ -222,24 +224,24 @@ def _feature_colour(frame, sh, t_id, ids, base, f, x, y, s):
         cr, cg, cb = flat_colour(sh, f)
         return float(cr), float(cg), float(cb)
     # One signature of _colour (a compile each) whatever integer types hold the ids.
-    return _colour(frame, sh, t_id, ids, np.int64(base), np.int64(f), np.int64(x), np.int64(y),
-                   np.int64(s))
+    return _colour(frame, sh, t_id, ids, np.int64(base), np.int64(stride), np.int64(f),
+                   np.int64(x), np.int64(y), np.int64(s))
 
 
 # Not inlined: edge_pixel is inlined into both box paths, and the sample shading this inlines
 # (twice, once in a loop) more than doubled their compile; it runs only for the pixels that
 # take an exact area.
 @borrowing
-def _colour(frame, sh, t_id, ids, base, f, x, y, s):
+def _colour(frame, sh, t_id, ids, base, stride, f, x, y, s):
     """Feature f's colour in pixel (x, y), through the air: the mean of the pixel's samples that
-    see it (ids[base + k] == f; for what has no edges, the background, sky or earth, sample s),
+    see it (ids[base + k stride] == f; for what has no edges, the background, sky or earth, sample s),
     so that the area weighs what the samples would have seen (a texture varies over them)."""
     r = 0.0
     g = 0.0
     b = 0.0
     n = 0
     for k in range(frame.offsets_fixed.shape[0]):
-        if k == s or (f >= 0 and ids[base + k] == f):
+        if k == s or (f >= 0 and ids[base + k * stride] == f):
             r, g, b = _sample(frame, sh, t_id, f, x, y, k, (r, g, b))
             n += 1
     # Guard: sample s is always taken, so n >= 1.

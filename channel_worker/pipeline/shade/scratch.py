@@ -9,9 +9,11 @@ import numpy as np
 
 
 class Scratch(NamedTuple):
-    """One thread's sample store for a sub-area (sample i of the sub-area: ((y - ty0) * tw +
-    (x - tx0)) * S + s): the nearest opaque feature's 1/z and identity, the nearer translucent
-    ones (nearest first: 1/z, identity, layer) and their count; the coverage masks (MaskLayout:
+    """One thread's sample store for a sub-area (sample s of pixel (x, y) of the sub-area is
+    i = ((y - ty0) * S + s) * tw + (x - tx0): a sample row of the sub-area is contiguous, so a
+    feature takes a run of pixels with contiguous writes): the nearest opaque feature's 1/z
+    and identity, the nearer translucent ones (nearest first: 1/z, identity, layer) and their
+    count; the coverage masks (MaskLayout:
     word r * wpr + w of row r) of the samples that hold an opaque feature (covered) and of the
     feature being read (cw); per row, a lower bound of the stored opaque 1/z (row_far); and the
     current feature's edges that cross the sub-area (act: edge rows, e_step: their steps,

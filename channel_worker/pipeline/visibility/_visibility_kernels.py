@@ -247,7 +247,7 @@ def _start_store(tx0, ty0, tx1, ty1, s_count, n, background, sc, lay):
                 for x in range(tx0, tx1):
                     iz = background.inv_z[y, x, s]
                     if iz > 0.0:
-                        i = ((y - ty0) * tw + (x - tx0)) * s_count + s
+                        i = ((y - ty0) * s_count + s) * tw + (x - tx0)
                         sc.o_id[i] = BACKGROUND_ID
                         sc.o_iz[i] = iz
                         sc.covered[word] |= np.uint64(1) << np.uint64(shift + x - tx0)
@@ -279,7 +279,7 @@ def _mark_uncovered(tw, th, s_count, sc, lay):
                 while m != 0:
                     x = lowest_bit(m)
                     m &= m - np.uint64(1)
-                    sc.o_id[(r * tw + x) * s_count + s] = -1
+                    sc.o_id[(r * s_count + s) * tw + x] = -1
 
 
 @njit(cache=True, inline="always")
@@ -354,14 +354,17 @@ def _coverage(p, full, box, tx0, ty0, screen, edges, off_fixed, sc, lay):
                 j = sc.act[q]
                 e0 = ia[j] * px0 + ib[j] * py + ic[j] - bias[j]
                 step = sc.e_step[q]
-                if e0 < 0 and step <= 0:
-                    khi = -1  # outside at k = 0 and not rising: outside on the whole row
+                # The edge is affine along the row: its sign at both ends of the box's run
+                # settles most rows without a quotient (inside at both, or outside at both).
+                e1 = e0 + step * span
+                if e0 >= 0:
+                    if e1 < 0:  # falls below 0 along the row: step < 0
+                        khi = min(khi, _first_inside(-e0 - 1, -step, -sc.e_inv[q]) - 1)
+                elif e1 < 0:
+                    khi = -1  # outside at both ends: outside on the whole row
                     break
-                if step > 0:
-                    if e0 < 0:
-                        klo = max(klo, _first_inside(e0, step, sc.e_inv[q]))
-                elif step < 0:
-                    khi = min(khi, _first_inside(-e0 - 1, -step, -sc.e_inv[q]) - 1)
+                else:  # rises to 0 along the row: step > 0
+                    klo = max(klo, _first_inside(e0, step, sc.e_inv[q]))
             if klo <= khi:
                 sc.cw[(y - ty0) * wpr + word] |= low_bits(khi - klo + 1) << np.uint64(shift + klo)
                 any_bit = True
@@ -455,12 +458,12 @@ def _take(p, a, b, c, bits, r, w, origin, off_fixed, sc, lay):
         # Same expression, same order everywhere: a * sx + (b * sy + c) is evaluated
         # identically for every feature, so coplanar ties stay exact.
         fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
-        base = r * tw * s_count + s
+        base = (r * s_count + s) * tw
         while m != 0:
             x0 = lowest_bit(m)
             run = lowest_bit(~(m >> np.uint64(x0)))
             for x in range(x0, x0 + run):
-                i = base + x * s_count
+                i = base + x
                 sc.o_iz[i] = a * (((tx0 + x) * SUBPIXEL + ox) * inv_sub) + fy
                 sc.o_id[i] = p
             m &= ~(low_bits(run) << np.uint64(x0))
@@ -498,11 +501,11 @@ def _contest(p, a, b, c, lay_p, bits, r, w, origin, off_fixed, layers, sc, lay):
             continue
         ox = off_fixed[s, 0]
         fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
-        base = r * tw * s_count + s
+        base = (r * s_count + s) * tw
         while m != 0:
             x = lowest_bit(m)
             m &= m - np.uint64(1)
-            i = base + x * s_count
+            i = base + x
             iz = a * (((tx0 + x) * SUBPIXEL + ox) * inv_sub) + fy
             f = sc.o_id[i]
             if _nearer(iz, lay_p, p, sc.o_iz[i], _layer(layers, f), f):
@@ -558,11 +561,11 @@ def _merge_general(p, plane, opaque, bound, box, origin, off_fixed, layers, sc, 
                 held = (old >> np.uint64(slot * lay.size)) & low_bits(lay.size)
                 ox = off_fixed[s, 0]
                 fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
-                base = r * tw * s_count + s
+                base = (r * s_count + s) * tw
                 while m != 0:
                     x = lowest_bit(m)
                     m &= m - np.uint64(1)
-                    i = base + x * s_count
+                    i = base + x
                     iz = a * (((tx0 + x) * SUBPIXEL + ox) * inv_sub) + fy
                     f = sc.o_id[i]
                     if ((held >> np.uint64(x)) & np.uint64(1)) != 0 and not _nearer(
@@ -615,10 +618,10 @@ def _write_store(tx0, ty0, tx1, ty1, backdrop, frame, background, out, sc):
     m = frame.mapping
     for y in range(ty0, ty1):
         for x in range(tx0, tx1):
-            base = ((y - ty0) * tw + (x - tx0)) * s_count
+            base = (y - ty0) * s_count * tw + (x - tx0)
             near_range = np.inf
             for s in range(s_count):
-                i = base + s
+                i = base + s * tw
                 f = sc.o_id[i]
                 if f < 0 and background.on:
                     f = BACKGROUND_ID  # resolve reads its colour and range from the Background

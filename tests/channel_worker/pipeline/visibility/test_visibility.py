@@ -87,6 +87,35 @@ def test_visibility_matches_brute_force(subarea, pattern):
         assert got == expect, (m, got, expect)
 
 
+@pytest.mark.parametrize("subarea", [5, 16, 64])
+@pytest.mark.parametrize("pattern", ["rgss4", "d3d16"])
+def test_opaque_masks_match_brute_force(subarea, pattern):
+    # Opaque only: every sub-area takes the word-at-a-time merge. Odd sub-areas pack 12
+    # sample rows into a word with 4 bits spare; 64 puts one sample row in each word.
+    offsets = RenderOptions(samples=pattern).sample_offsets()
+    screen = random_scene(subarea * 11 + len(offsets), 24)
+    buf = store(screen, VIEW, pattern, subarea=subarea)
+    opaque, _ = brute_force(screen, offsets, 1)
+    np.testing.assert_array_equal(np.where(buf.opaque >= 0, buf.opaque, -1), opaque)
+
+
+def test_features_behind_covered_samples_are_rejected_whole():
+    # The nearest quad covers the left half; nine quads behind it lie inside the part of the
+    # sub-areas at x 16..23 (subarea 8) that it covers. Those sub-areas are not wholly covered
+    # (no early stop), so each of the nine is read and rejected by its box alone.
+    def rect(x0, x1):
+        return np.array([[x0 * SUBPIXEL, 0], [x1 * SUBPIXEL, 0], [x1 * SUBPIXEL, H * SUBPIXEL],
+                         [x0 * SUBPIXEL, H * SUBPIXEL]])
+
+    polys = [rect(0, 20)] + [rect(17, 19)] * 9 + [rect(0, W)]
+    planes = ([(0.0, 0.0, 1.0)] + [(0.0, 0.0, 1.0 / (2.0 + k)) for k in range(9)]
+              + [(0.0, 0.0, 0.01)])
+    buf = store(screen_polygons(polys, planes), VIEW, "rgss4", subarea=8)
+    assert (buf.opaque[:, :19] == 0).all()
+    assert (buf.opaque[:, 21:] == 10).all()
+    assert buf.stats["entries_hidden"] == 9 * (H // 8)
+
+
 def test_fully_covered_subareas_are_covered_at_every_sample():
     offsets = RenderOptions(samples="d3d16").sample_offsets()
     screen = random_scene(5, 30)
