@@ -1,7 +1,11 @@
 """Multi-sample visibility with opaque and translucent features (EP 0611020).
 
-For every sampling point of every sub-area, the features of that sub-area's list are tested in
-turn (no edge test where the sub-area is fully covered), and a small per-sample store keeps:
+The features of each sub-area's list are read nearest first. Each one's coverage of the
+sub-area is built as bit masks from its edges, a sample row at a time (no edge test where it
+covers the sub-area fully), and merged into the samples' coverage 64 at a time, after
+N. Greene's coverage masks: samples that hold nothing take it without a depth test, held
+samples are compared only where the order is ambiguous, and a feature wholly behind covered
+samples costs one test. A small per-sample store keeps:
 
 - the nearest opaque feature (its 1/z and identity; an opaque feature is never dropped);
 - up to K translucent features nearer than it, nearest first. When a (K + 1)-th nearer
@@ -18,7 +22,8 @@ terrain as its nearest opaque feature, at the terrain's depth: polygons behind a
 hidden like polygons behind polygons (and the sub-area lists stop early behind it), and what
 no polygon covers shows the background.
 
-The store holds identities; the resolve stage turns them into colours.
+The store holds identities; the shading (shade/) turns them into colours, per sub-area on
+the fused path (visible_pixels), or over the frame's store in the resolve stage.
 """
 
 from __future__ import annotations
