@@ -80,7 +80,7 @@ def test_render_size_errors_exit_2_in_one_line(option, value, message, capsys):
 def test_render_options_out_of_range_exit_2_in_one_line(tmp_path, capsys):
     scene = tmp_path / "s.json"
     scene.write_text(json.dumps(SCENE))
-    for flag, value, message in (("--subarea", "100000", "subarea: expected an integer in 1..256, got 100000"),
+    for flag, value, message in (("--subarea", "100000", "subarea: expected an integer in 1..64, got 100000"),
                                  ("--threads", "-1", "threads: expected an integer in 0..1024, got -1"),
                                  ("--samples", "1000", "samples: 1000 has no pattern")):
         assert run([str(scene), "--eye", "0", "0", "2", flag, value, "--out", str(tmp_path / "x.png")]) == 2
