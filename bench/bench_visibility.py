@@ -229,6 +229,21 @@ def merge_record(path: Path, fresh: dict[str, Any], sections: tuple[str, ...]) -
     return record
 
 
+def timing_row(reports: list[Any], walls: list[float], stages: list[str]) -> dict[str, Any]:
+    """One case's times: each stage's and the stages' sum's median over its FrameReports, the
+    median wall-clock frame (total_ms, fps), every frame, and the last frame's
+    translucent_dropped."""
+    total = statistics.median(walls)
+    return {
+        "stages_ms": {s: 1e3 * statistics.median(r.stage_seconds.get(s, 0.0) for r in reports)
+                      for s in stages},
+        "stages_sum_ms": 1e3 * statistics.median(r.total_seconds for r in reports),
+        "total_ms": 1e3 * total, "fps": 1.0 / total,
+        "frame_ms": [1e3 * w for w in walls],
+        "translucent_dropped": reports[-1].counters.get("translucent_dropped"),
+    }
+
+
 def approach_section(repeats: int, subareas: tuple[int, ...], supersample: int,
                      gl_frames: int | None, cpu: int | None) -> dict[str, Any]:
     """The approach scene: every pattern, sub-area and (at the default sub-area) coverage rule
@@ -317,12 +332,7 @@ def approach_section(repeats: int, subareas: tuple[int, ...], supersample: int,
                     "pattern": pattern,
                     "samples": int(RenderOptions(samples=pattern).sample_offsets().shape[0]),
                     "subarea": subarea, "coverage": coverage,
-                    "stages_ms": {s: 1e3 * statistics.median(r.stage_seconds.get(s, 0.0)
-                                                             for r in cruns) for s in stages},
-                    "stages_sum_ms": 1e3 * statistics.median(r.total_seconds for r in cruns),
-                    "total_ms": 1e3 * total, "fps": 1.0 / total,
-                    "frame_ms": [1e3 * w for w in walls[coverage]],
-                    "translucent_dropped": cruns[-1].counters.get("translucent_dropped"),
+                    **timing_row(cruns, walls[coverage], stages),
                     "frame_report": cruns[-1].to_dict(),
                     **err,
                 })
@@ -802,15 +812,8 @@ def overdraw_section(repeats: int, cpu: int | None, gl_frames: int | None,
             runs = reports[pattern]
             stages = stages or list(runs[0].stage_seconds)
             total = statistics.median(walls[pattern])
-            ours[pattern] = {
-                "samples": RenderOptions(samples=pattern).sample_count,
-                "stages_ms": {s: 1e3 * statistics.median(r.stage_seconds.get(s, 0.0)
-                                                         for r in runs) for s in stages},
-                "stages_sum_ms": 1e3 * statistics.median(r.total_seconds for r in runs),
-                "total_ms": 1e3 * total, "fps": 1.0 / total,
-                "frame_ms": [1e3 * t for t in walls[pattern]],
-                "translucent_dropped": runs[-1].counters.get("translucent_dropped"),
-                **errs[pattern]}
+            ours[pattern] = {"samples": RenderOptions(samples=pattern).sample_count,
+                             **timing_row(runs, walls[pattern], stages), **errs[pattern]}
             print(f"  {name} {pattern}: {1e3 * total:.1f} ms, rmse {errs[pattern]['rmse']:.4f}",
                   file=sys.stderr)
         gl: dict[str, Any] = {"available": False, "reason": "skipped (--no-llvmpipe)"}

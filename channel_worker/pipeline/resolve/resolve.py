@@ -15,12 +15,10 @@ from channel_worker.pipeline.contract import (
     ScreenPolygons,
     rgb_array,
 )
-from channel_worker.pipeline.shade.group import COVERAGES, area_coverage, shade_frame
+from channel_worker.pipeline.shade.group import shade_frame
 from services.rig.options import RenderOptions
 
 from ._resolve_kernels import StoreIn, box_kernel, filter_kernel, shade_kernel
-
-__all__ = ["COVERAGES", "FILTERS", "area_coverage", "filter_weights", "resolve"]
 
 
 def _box(dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
@@ -91,7 +89,7 @@ def resolve(buffer: SampleBuffer, screen: ScreenPolygons, frame: FrameConstants,
                     buffer.translucent_count.reshape(-1))
     sf = shade_frame(screen, frame, background, options, edges)
     if options.filter == "box":
-        box_kernel(store, *sf, rgb, range_m)
+        box_kernel(store, sf.frame, sf.background, sf.sh, sf.cov, rgb, range_m)
     else:
         samples = np.empty(buffer.opaque.shape + (3,), np.float32)
         shade_kernel(store, sf.frame, sf.background, sf.sh, samples, range_m)

@@ -101,7 +101,7 @@ def box_subarea(sf, rect, backdrop, any_translucent, want_range, sc, out_rgb, ou
                 bg_only = f0 < 0 and background.on
                 # A pixel visibility left unmixed sees one thing with every sample, nothing
                 # translucent: no need to look at its samples.
-                mixed = (sc.mixed[y - ty0] >> np.uint64(x - tx0)) & np.uint64(1) != 0
+                mixed = ((sc.mixed[y - ty0] >> np.uint64(x - tx0)) & np.uint64(1)) != 0
                 for s in range(1, s_count if mixed else 1):
                     if o_id[base + s * tw] != f0 and not (bg_only and o_id[base + s * tw] < 0):
                         same = False

@@ -264,6 +264,29 @@ def _start_store(tx0, ty0, tx1, ty1, s_count, n, background, sc, lay):
 
 
 @njit(cache=True, inline="always")
+def _slots(w, s_count, lay):
+    """How many sample rows word w of a pixel row holds (the last word may hold fewer)."""
+    return min(lay.spw, s_count - w * lay.spw)
+
+
+@njit(cache=True, inline="always")
+def _slot_bits(bits, slot, lay):
+    """The pixel columns (bit x for column x) of sample row `slot` of a mask word."""
+    return (bits >> np.uint64(slot * lay.size)) & low_bits(lay.size)
+
+
+@njit(cache=True, inline="always")
+def _sample_row(b, c, r, w, slot, origin, off_fixed, lay):
+    """(sample s, store index of column 0, its x offset, b sy + c) of sample row `slot` of word
+    w of pixel row r: what a feature's plane a sx + (b sy + c) needs along that sample row.
+    Same expression, same order everywhere, so coplanar ties stay exact."""
+    ty0, tw = origin[1], origin[2]
+    s = w * lay.spw + slot
+    py = (ty0 + r) * SUBPIXEL + off_fixed[s, 1]
+    return s, (r * off_fixed.shape[0] + s) * tw, off_fixed[s, 0], b * (py * (1.0 / SUBPIXEL)) + c
+
+
+@njit(cache=True, inline="always")
 def _mark_uncovered(tw, th, s_count, sc, lay):
     """o_id = -1 at every sample no opaque feature covers (what the box filter and the store
     read as "nothing here")."""
@@ -271,11 +294,9 @@ def _mark_uncovered(tw, th, s_count, sc, lay):
     for r in range(th):
         for w in range(lay.wpr):
             m_all = ~sc.covered[r * lay.wpr + w] & (cols * lay.rep[w])
-            for slot in range(lay.spw):
+            for slot in range(_slots(w, s_count, lay)):
                 s = w * lay.spw + slot
-                if s >= s_count:
-                    break
-                m = (m_all >> np.uint64(slot * lay.size)) & cols
+                m = _slot_bits(m_all, slot, lay)
                 while m != 0:
                     x = lowest_bit(m)
                     m &= m - np.uint64(1)
@@ -443,22 +464,13 @@ def _plane_floor(a, b, c, box):
 def _take(p, a, b, c, bits, r, w, origin, off_fixed, sc, lay):
     """Samples `bits` of word w of row r hold nothing yet: polygon p takes them, a run of
     pixels at a time (a convex polygon's row is one run)."""
-    tx0, ty0, tw = origin
-    s_count = off_fixed.shape[0]
+    tx0 = origin[0]
     inv_sub = 1.0 / SUBPIXEL
-    y = ty0 + r
-    for slot in range(lay.spw):
-        s = w * lay.spw + slot
-        if s >= s_count:
-            break
-        m = (bits >> np.uint64(slot * lay.size)) & low_bits(lay.size)
+    for slot in range(_slots(w, off_fixed.shape[0], lay)):
+        m = _slot_bits(bits, slot, lay)
         if m == 0:
             continue
-        ox = off_fixed[s, 0]
-        # Same expression, same order everywhere: a * sx + (b * sy + c) is evaluated
-        # identically for every feature, so coplanar ties stay exact.
-        fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
-        base = (r * s_count + s) * tw
+        _, base, ox, fy = _sample_row(b, c, r, w, slot, origin, off_fixed, lay)
         while m != 0:
             x0 = lowest_bit(m)
             run = lowest_bit(~(m >> np.uint64(x0)))
@@ -473,11 +485,8 @@ def _take(p, a, b, c, bits, r, w, origin, off_fixed, sc, lay):
 def _fold(bits, w, any_px, all_px, s_count, lay):
     """(any_px, all_px) updated with word w of a row's sample masks: the pixel columns where
     any, and where every, sample of the row is in bits (fold over the samples' slots)."""
-    cols = low_bits(lay.size)
-    for slot in range(lay.spw):
-        if w * lay.spw + slot >= s_count:
-            break
-        m = (bits >> np.uint64(slot * lay.size)) & cols
+    for slot in range(_slots(w, s_count, lay)):
+        m = _slot_bits(bits, slot, lay)
         any_px |= m
         all_px &= m
     return any_px, all_px
@@ -487,21 +496,14 @@ def _fold(bits, w, any_px, all_px, s_count, lay):
 def _contest(p, a, b, c, lay_p, bits, r, w, origin, off_fixed, layers, sc, lay):
     """Samples `bits` of word w of row r hold an opaque feature: polygon p replaces it where
     it is nearer. Returns the samples it won (a mask like bits)."""
-    tx0, ty0, tw = origin
-    s_count = off_fixed.shape[0]
+    tx0 = origin[0]
     inv_sub = 1.0 / SUBPIXEL
-    y = ty0 + r
     won = np.uint64(0)
-    for slot in range(lay.spw):
-        s = w * lay.spw + slot
-        if s >= s_count:
-            break
-        m = (bits >> np.uint64(slot * lay.size)) & low_bits(lay.size)
+    for slot in range(_slots(w, off_fixed.shape[0], lay)):
+        m = _slot_bits(bits, slot, lay)
         if m == 0:
             continue
-        ox = off_fixed[s, 0]
-        fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
-        base = (r * s_count + s) * tw
+        _, base, ox, fy = _sample_row(b, c, r, w, slot, origin, off_fixed, lay)
         while m != 0:
             x = lowest_bit(m)
             m &= m - np.uint64(1)
@@ -518,14 +520,14 @@ def _contest(p, a, b, c, lay_p, bits, r, w, origin, off_fixed, layers, sc, lay):
 @borrowing
 def _merge_general(p, plane, opaque, bound, box, origin, off_fixed, layers, sc, lay):
     """Merge polygon p's coverage (sc.cw) into the store of a sub-area with translucency, a
-    sample at a time (_sample): an opaque feature takes or contests samples as in
+    sample at a time: an opaque feature takes or contests samples as in
     _merge_opaque and hides the translucent ones behind it; a translucent one enters the
     sample's list of nearer translucent features. Rows where every covered sample is nearer
     than p skip their covered samples. Returns (samples newly covered or -1 if no opaque
     sample changed, translucent features dropped from a full list)."""
     a, b, c, lay_p = plane
     ly0, ly1 = box[2], box[3]
-    tx0, ty0, tw = origin
+    tx0, ty0 = origin[0], origin[1]
     low = _plane_floor(a, b, c, box)
     s_count = off_fixed.shape[0]
     inv_sub = 1.0 / SUBPIXEL
@@ -553,15 +555,10 @@ def _merge_general(p, plane, opaque, bound, box, origin, off_fixed, layers, sc, 
                 new = cov & ~old
                 sc.covered[idx] = old | new
                 added += bit_count(new)
-            for slot in range(lay.spw):
-                s = w * lay.spw + slot
-                if s >= s_count:
-                    break
-                m = (bits >> np.uint64(slot * lay.size)) & low_bits(lay.size)
-                held = (old >> np.uint64(slot * lay.size)) & low_bits(lay.size)
-                ox = off_fixed[s, 0]
-                fy = b * ((y * SUBPIXEL + off_fixed[s, 1]) * inv_sub) + c
-                base = (r * s_count + s) * tw
+            for slot in range(_slots(w, s_count, lay)):
+                m = _slot_bits(bits, slot, lay)
+                held = _slot_bits(old, slot, lay)
+                _, base, ox, fy = _sample_row(b, c, r, w, slot, origin, off_fixed, lay)
                 while m != 0:
                     x = lowest_bit(m)
                     m &= m - np.uint64(1)

@@ -116,8 +116,9 @@ def visible_pixels(screen: ScreenPolygons, edges: Edges, bins: Bins, frame: Fram
 def _run(screen: ScreenPolygons, edges: Edges, bins: Bins, out: StoreOut,
          counters: dict[str, int], sf: ShadeFrame) -> None:
     # Layers as int32, like the store's: one integer type in every depth comparison.
-    visibility_kernel(bins, screen._replace(layer=screen.layer.astype(np.int32)), edges, *sf, out,
-                      numba.get_num_threads(), mask_layout(bins.size, sf.frame.offsets_fixed))
+    visibility_kernel(bins, screen._replace(layer=screen.layer.astype(np.int32)), edges, sf.frame,
+                      sf.background, sf.sh, sf.cov, out, numba.get_num_threads(),
+                      mask_layout(bins.size, sf.frame.offsets_fixed))
     counters.update(bins.counters())
     counters["translucent_dropped"] = int(out.dropped.sum())
     counters["entries_skipped_by_depth"] = int(out.stopped.sum())

@@ -94,8 +94,8 @@ def test_replace_checks_like_the_constructor():
 
 
 def test_registries_are_what_the_pipeline_implements():
-    from channel_worker.pipeline.resolve.resolve import COVERAGES as coverages
     from channel_worker.pipeline.resolve.resolve import FILTERS as implemented
+    from channel_worker.pipeline.shade.group import COVERAGES as coverages
 
     assert set(implemented) == set(FILTERS)
     assert set(coverages) == set(COVERAGES)
