@@ -39,12 +39,19 @@ def run(args: argparse.Namespace) -> int:
     # The pipeline (numba) and OpenImageIO are imported here, not at the top: `ig --help` builds
     # every subcommand's parser and should not wait for the renderer to load.
     from services.rig.image_io import write_image
+    from services.rig.threads import size_thread_pool
 
+    try:
+        options = from_arguments(args)
+        # Before the pipeline is imported: numba sizes its pool once (services/rig/threads.py).
+        size_thread_pool(options.threads, setting="--threads")
+    except ValueError as exc:
+        print(f"ig render: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     from .pipeline.render import render_frame
     from .pipeline.scene.load import SceneError, bundled_scene_path, load_scene
 
     try:
-        options = from_arguments(args)
         database = load_scene(args.scene or bundled_scene_path())
         channel = ChannelSpec.symmetric("render", args.width, args.height, args.fov_h, args.fov_v,
                                         yaw_deg=args.channel_hpr[0], pitch_deg=args.channel_hpr[1],

@@ -40,17 +40,27 @@ def run(args: argparse.Namespace) -> int:
     Returns 0 ok, 1 cannot listen, 2 bad input (rig, channel, scene, samples, or a host that
     does not know the channel).
     """
-    from channel_worker.pipeline.scene.load import SceneError, bundled_scene_path, load_scene
     from services.rig.cli_common import security_of
     from services.rig.grpc_util import configure_logging, stop_on_signals
     from services.rig.rigfile import RigError, bind_address
-
-    from .worker import ChannelWorker, serve_worker
+    from services.rig.threads import size_thread_pool
 
     configure_logging(args.verbose)
     rig = load_rig_or_report(args.rig, "worker")
     if rig is None:
         return EXIT_BAD_INPUT
+    try:
+        # The thread count before the pipeline is imported: numba sizes its pool once, at its
+        # first parallel kernel, from NUMBA_NUM_THREADS (services/rig/threads.py).
+        options = from_arguments(args, base=rig.render)
+        size_thread_pool(options.threads, setting="--threads" if args.threads is not None else "[render] threads")
+    except ValueError as exc:
+        error("worker", exc)
+        return EXIT_BAD_INPUT
+    from channel_worker.pipeline.scene.load import SceneError, bundled_scene_path, load_scene
+
+    from .worker import ChannelWorker, serve_worker
+
     try:
         if args.channel_index is not None:
             if not 0 <= args.channel_index < len(rig.channels):
@@ -59,8 +69,6 @@ def run(args: argparse.Namespace) -> int:
             channel = rig.channels[args.channel_index]
         else:
             channel = rig.channel(args.channel)
-        # The rig file's [render] table, under this command line's flags.
-        options = from_arguments(args, base=rig.render)
         # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
         database = load_scene(args.scene or bundled_scene_path())
         security = security_of(rig)

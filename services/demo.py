@@ -48,6 +48,7 @@ from services.rig.cli_common import (
 )
 from services.rig.grpc_util import RPC_DEADLINE_S, make_channel
 from services.rig.rigfile import Rig, TlsSpec, rig_toml
+from services.rig.threads import share_of_cores, usable_cores
 
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
@@ -94,6 +95,9 @@ def add_rig_options(parser: argparse.ArgumentParser, *, out: str) -> None:
     parser.add_argument("--samples", default="4", help="samples per pixel, a count or a pattern name (default 4)")
     parser.add_argument("--filter", default="box",
                         help="pixel reconstruction filter: box, tent, gaussian (default box)")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="render threads of each worker (default: the rig file's [render] threads, or "
+                             "where that is 0, this machine's cores divided among the workers)")
     parser.add_argument("--scene", default=None,
                         help="scene JSON (default: the bundled airfield on the bundled terrain, "
                              "with haze and clouds)")
@@ -300,6 +304,7 @@ def prepare_rig(command: str, args: argparse.Namespace) -> tuple[Rig, str] | int
         # The flags over the rig's [render] table, written into the run's rig file, which
         # `ig compile` and every worker read: they cannot render with different options.
         rig = replace(rig, render=rig.render.replace(samples=args.samples, filter=args.filter))
+        rig = replace(rig, render=rig.render.replace(threads=worker_threads(rig, args.threads)))
     except ValueError as exc:
         error(command, exc)
         return EXIT_BAD_INPUT
@@ -324,6 +329,23 @@ def prepare_rig(command: str, args: argparse.Namespace) -> tuple[Rig, str] | int
     return local_rig(rig), scene_path
 
 
+def worker_threads(rig: Rig, flag: int | None) -> int:
+    """Render threads of each worker of a rig started on this machine: --threads, else the rig
+    file's [render] threads, else (0) the usable cores shared among the workers.
+
+    Raises:
+        ValueError: a count this machine cannot give every worker, naming where it came from.
+    """
+    setting, threads = ("--threads", flag) if flag is not None else ("[render] threads", rig.render.threads)
+    if threads == 0:
+        return share_of_cores(len(rig.channels))
+    cores = usable_cores()
+    if threads < 0 or threads > cores:
+        raise ValueError(f"{setting}: {threads} is not in 1..{cores}, the cores this machine has (0: share them "
+                         "among the workers)")
+    return threads
+
+
 Failure = tuple[str, int]
 """A process that exited with an error: its name and exit code."""
 
@@ -344,12 +366,12 @@ def compile_kernels(procs: Processes, command: str, rig_path: Path, scene: list[
 
 
 def start_workers(procs: Processes, rig: Rig, rig_path: Path, scene: list[str]) -> None:
-    """One worker per channel, with one numba thread each (they already run in parallel with each
-    other). They serve every run of the host at the rig's address until stopped (stop_all), so
+    """One worker per channel, each with the rig file's [render] threads (worker_threads: the
+    cores shared among them by default), which the worker sizes its pool to before numba
+    starts. They serve every run of the host at the rig's address until stopped (stop_all), so
     a calibration run and the real one share them, kernels loaded once."""
     for ch in rig.channels:
-        procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name, *scene],
-                    env={"NUMBA_NUM_THREADS": "1"})
+        procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name, *scene])
 
 
 def wait_for_exit(procs: Processes, proc: subprocess.Popen, stop: StopFlag, *,
@@ -421,7 +443,8 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     procs = Processes(out / "logs", args.verbose)
     print(f"ig demo: {len(rig.channels)} channels ({', '.join(rig.channel_names)}), "
-          f"{rig.channels[0].spec.width} x {rig.channels[0].spec.height} each, {args.duration:g} simulated "
+          f"{rig.channels[0].spec.width} x {rig.channels[0].spec.height} each, {rig.render.threads} render "
+          f"thread(s) per worker, {args.duration:g} simulated "
           f"seconds; logs in {out / 'logs'}", flush=True)
     scene = ["--scene", scene_path]
     started = time.monotonic()

@@ -589,7 +589,8 @@ def run(args: argparse.Namespace) -> int:
     compositor_report = json.loads(report_path.read_text()) if report_path.exists() else None
     doc = {
         "rig": {"channels": list(rig.channel_names), "width": spec.width, "height": spec.height,
-                "samples": str(rig.render.samples), "filter": rig.render.filter, "scene": scene_path},
+                "samples": str(rig.render.samples), "filter": rig.render.filter, "scene": scene_path,
+                "threads_per_worker": rig.render.threads},
         "rate_hz": rate, "watched_channel": channel, "stick_levels": list(levels), "threshold_px": args.threshold,
         "input": "CANaerospace pitch_control_position over slcan (pseudo-terminal), python-can in the host",
         "summary": summary, "part60": verdicts,
