@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 from numba import njit, prange
 
-from channel_worker.pipeline.jit import borrowing, lanes
+from channel_worker.pipeline.jit import borrowing, claim, lanes, new_queue
 
 
 class _Block(NamedTuple):
@@ -71,9 +71,15 @@ def cloud_over_kernel(frame, clouds, block, range_m, rgb, out_cloud, threads):
         threads: numba.get_num_threads() (jit.lanes).
     """
     blocks_y = (frame.height + block - 1) // block
+    # Rows of blocks from a queue (jit.lanes): rows where the cloud lies over the background
+    # cost more than clear ones.
     n_lanes = lanes(threads, blocks_y)
-    for lane in prange(n_lanes):
-        for by in range(lane, blocks_y, n_lanes):
+    queue = new_queue()
+    for _lane in prange(n_lanes):
+        while True:
+            by = claim(queue)
+            if by >= blocks_y:
+                break
             _row_of_blocks(frame, clouds, block, range_m, rgb, out_cloud, by * block)
 
 

@@ -14,7 +14,7 @@ import math
 
 from numba import njit, prange
 
-from channel_worker.pipeline.jit import borrowing, lanes
+from channel_worker.pipeline.jit import borrowing, claim, lanes, new_queue
 
 
 @njit(cache=True, parallel=True)
@@ -34,9 +34,15 @@ def sample_depth_kernel(frame, aux, depth, out_inv_z, threads):
     tile = depth.tile
     tiles_x = (frame.width + tile - 1) // tile
     tiles_y = (frame.height + tile - 1) // tile
+    # Rows of sub-areas from a queue (jit.lanes): a row under the polygons costs a depth per
+    # sample, one without them a store of zeros.
     n_lanes = lanes(threads, tiles_y)
-    for lane in prange(n_lanes):
-        for ty in range(lane, tiles_y, n_lanes):
+    queue = new_queue()
+    for _lane in prange(n_lanes):
+        while True:
+            ty = claim(queue)
+            if ty >= tiles_y:
+                break
             for tx in range(tiles_x):
                 if depth.need[ty * tiles_x + tx]:
                     _tile(frame, aux, depth, out_inv_z, tx * tile, ty * tile)

@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from channel_worker.pipeline.contract import EARTH_ID, SKY_ID, SUBPIXEL
-from channel_worker.pipeline.jit import borrowing, lanes
+from channel_worker.pipeline.jit import borrowing, claim, lanes, new_queue
 
 #: Edge kinds (the Note's EN/EX bit, plus horizontal edges, which bound no span along the scan:
 #: on a scan line they either keep the whole line or none of it).
@@ -214,11 +214,15 @@ def scan_frame_kernel(edges, incidence, faces, frame, n_bands, out, band_stats, 
     height = out.range_m.shape[0]
     # Guard: the caller passes 1 <= n_bands <= height.
     rows = (height + n_bands - 1) // n_bands
-    # Bands interleaved over the threads (jit.lanes): a thread's bands lie all down the image,
-    # so sky bands and busy ones are shared out.
+    # Bands from a queue shared by the threads (jit.lanes): sky bands are cheap, busy ones
+    # dear, and whichever thread is free takes the next.
     n_lanes = lanes(threads, n_bands)
-    for lane in prange(n_lanes):
-        for band in range(lane, n_bands, n_lanes):
+    queue = new_queue()
+    for _lane in prange(n_lanes):
+        while True:
+            band = claim(queue)
+            if band >= n_bands:
+                break
             y_lo = band * rows
             y_hi = min(height, y_lo + rows)
             if y_lo < y_hi:

@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit, prange
 
 from channel_worker.pipeline.contract import BACKGROUND_ID, EARTH_ID, SKY_ID, SUBPIXEL
-from channel_worker.pipeline.jit import bit_count, borrowing, lanes, low_bits, lowest_bit
+from channel_worker.pipeline.jit import bit_count, borrowing, claim, lanes, low_bits, lowest_bit, new_queue
 from channel_worker.pipeline.shade._box_kernels import box_subarea
 from channel_worker.pipeline.shade.group import ShadeFrame
 from channel_worker.pipeline.shade.scratch import Scratch
@@ -106,13 +106,15 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, cov, out, thre
     max_edges = 3
     for p in range(screen.start.shape[0] - 1):
         max_edges = max(max_edges, screen.start[p + 1] - screen.start[p])
-    # A thread takes whole rows of sub-areas, every lanes-th one (sky rows are cheap, ground
-    # rows dear: interleaving balances them, see jit.lanes), and walks each left to right,
-    # so its pixel writes run along the image rows instead of jumping a page per row of
-    # every sub-area; the sample store is allocated once per thread.
-    n_lanes = lanes(threads, bins.tiles_y)
+    # A thread takes runs of _TASK_TILES sub-areas along a row from a queue shared by the
+    # threads (sky sub-areas are cheap, the airfield's dear: whichever thread is free takes
+    # the next run, see jit.lanes), and walks each left to right, so its pixel writes run
+    # along the image rows; the sample store is allocated once per thread.
+    n_tasks = (bins.tiles_x + _TASK_TILES - 1) // _TASK_TILES * bins.tiles_y
+    n_lanes = lanes(threads, n_tasks)
     n_words = bins.size * lay.wpr
-    for lane in prange(n_lanes):
+    queue = new_queue()
+    for _lane in prange(n_lanes):
         n_t = n_max if out.any_translucent else 1
         sc = Scratch(np.empty(n_max, np.float64), np.empty(n_max, np.int32),
                      np.empty((n_t, k_max), np.float64), np.empty((n_t, k_max), np.int32),
@@ -121,16 +123,28 @@ def visibility_kernel(bins, screen, edges, frame, background, sh, cov, out, thre
                      np.empty(max_edges, np.int64), np.zeros(n_words, np.uint64),
                      np.zeros(n_words, np.uint64), np.empty(bins.size, np.float64),
                      np.zeros(bins.size, np.uint64))
-        _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, cov, out, sc, lay)
+        _runs(queue, n_tasks, bins, screen, edges, frame, background, sh, cov, out, sc, lay)
+
+
+#: Sub-areas per task of visibility_kernel's queue: a run along a row (64 pixels at the
+#: default size), long enough that the queue's atomic add is nothing against it, short
+#: enough that a 1024 x 768 frame has 768 tasks for 16 threads to share.
+_TASK_TILES = 4
 
 
 @borrowing
-def _rows(lane, n_lanes, bins, screen, edges, frame, background, sh, cov, out, sc, lay):
-    """The sub-areas of visibility_kernel's lane: rows lane, lane + n_lanes, ... (frame,
-    background, sh, cov: the ShadeFrame's parts)."""
+def _runs(queue, n_tasks, bins, screen, edges, frame, background, sh, cov, out, sc, lay):
+    """The runs of sub-areas one lane of visibility_kernel claims from queue until none is
+    left (frame, background, sh, cov: the ShadeFrame's parts)."""
     sf = ShadeFrame(frame, background, sh, cov)
-    for row in range(lane, bins.tiles_y, n_lanes):
-        for t in range(row * bins.tiles_x, (row + 1) * bins.tiles_x):
+    runs_per_row = (bins.tiles_x + _TASK_TILES - 1) // _TASK_TILES
+    while True:
+        task = claim(queue)
+        if task >= n_tasks:
+            return
+        row = task // runs_per_row
+        first = row * bins.tiles_x + (task % runs_per_row) * _TASK_TILES
+        for t in range(first, min(first + _TASK_TILES, (row + 1) * bins.tiles_x)):
             _tile(t, bins, screen, edges, sf, out, sc, lay)
 
 
