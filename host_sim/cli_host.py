@@ -25,6 +25,7 @@ from services.rig.cli_common import (
     non_negative,
     positive,
 )
+from services.rig.rigfile import PACES
 
 log = logging.getLogger("ig.host")
 
@@ -36,7 +37,13 @@ UNTIL_STOPPED_S = 1e9
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig host`."""
     add_rig_arguments(parser)
-    parser.add_argument("--rate", type=positive, default=60.0, help="frame rate, Hz (default 60)")
+    parser.add_argument("--rate", type=positive, default=60.0,
+                        help="frame rate, Hz, with --pace ticks; the most frames a second with --pace acks "
+                             "(default 60)")
+    parser.add_argument("--pace", choices=list(PACES), default=None,
+                        help="how frames are paced (default: the rig file's sync.pace, ticks unless set): "
+                             + "; ".join(f"{name}: {what}" for name, what in PACES.items())
+                             + " (docs/frame-lock.md)")
     parser.add_argument("--duration", type=non_negative, default=None,
                         help="simulated seconds to publish (default: the whole bundled flight or replay; "
                              "until stopped with --controls or --loop)")
@@ -135,7 +142,8 @@ def run(args: argparse.Namespace) -> int:
                                        duration_s=duration,
                                        sync_timeout_s=args.sync_timeout or rig.sync.frame_timeout_s,
                                        observers=args.observers, start_timeout_s=args.start_timeout,
-                                       starting=_worker_starting(rig, security))
+                                       starting=_worker_starting(rig, security),
+                                       pace=args.pace or rig.sync.pace)
         except ValueError as exc:
             error("host", exc)
             return EXIT_BAD_INPUT

@@ -1,9 +1,18 @@
 """Frame publication with the synchronous frame lock (docs/frame-lock.md), without a network.
 
 The host publishes frame n, then waits until every channel of the rig has acknowledged n (or the
-sync timeout passes) before it publishes n + 1 at the next tick of its fixed rate. Rendering
-slower than the rate therefore slows the simulation down, as CIGI's synchronous mode does, but
-never lets the channels drift onto different frames.
+sync timeout passes) before it publishes n + 1, paced one of two ways (PACES):
+
+- ticks: n + 1 goes at the next tick of a fixed rate, with simulation time tick / rate.
+  Rendering slower than the rate slows the simulation down, as CIGI's synchronous mode does;
+  replays and tests get the same simulation times on every run.
+- acks: n + 1 goes as soon as the acknowledgements are in (never faster than the rate, which
+  is then a cap), with simulation time taken from the wall clock: the flight flies in real time
+  at whatever rate the rig renders, and an input waits at most for the frame in flight instead
+  of that frame and then a tick.
+
+Either way the controls are sampled (the source called) immediately before the frame is
+built and published, and the frame's control sample time is that moment.
 """
 
 from __future__ import annotations
@@ -21,6 +30,7 @@ from services.rig.environment import Environment, environment_to_proto
 from services.rig.frame import Eyepoint, check_eyepoint
 from services.rig.grpc_util import clip
 from services.rig.mailbox import Mailbox
+from services.rig.rigfile import PACES
 from services.rig.wire import eyepoint_to_proto
 
 log = logging.getLogger("ig.host")
@@ -112,17 +122,21 @@ class HostStatus:
 
 
 class FramePublisher:
-    """Publishes frames of an eyepoint source at a fixed rate, frame-locked to the channels.
+    """Publishes frames of an eyepoint source, frame-locked to the channels, paced by ticks or
+    by the channels' acknowledgements (module doc).
 
-    Tick k of the run has simulation time k / rate_hz seconds. Frame numbers count published
-    frames, so they equal the tick unless an eyepoint was refused: a refused tick publishes
-    nothing and leaves no gap, so that a gap seen by a worker always means a skipped frame.
+    With pace "ticks", tick k of the run has simulation time k / rate_hz seconds. With pace
+    "acks", a frame's simulation time is the time since the first frame on the monotonic clock,
+    read just before the frame is sampled, and the frame due at or past duration_s is the last,
+    with simulation time duration_s. Frame numbers count published frames, so they equal the
+    tick unless an eyepoint was refused: a refused tick publishes nothing and leaves no gap, so
+    that a gap seen by a worker always means a skipped frame.
 
     Args:
         source: eyepoint at a simulation time in seconds, or a FrameInput (an external host's
             frame: its frame number, environment and views, a new run, or nothing to publish).
         channels: names of the rig's channels; each must acknowledge every frame.
-        rate_hz: publication rate, Hz.
+        rate_hz: publication rate, Hz (pace "ticks"), or the most frames a second (pace "acks").
         duration_s: simulated seconds to run.
         sync_timeout_s: longest wait for the acknowledgements of one frame, seconds.
         observers: observers (e.g. the compositor) to wait for before the first frame.
@@ -135,13 +149,19 @@ class FramePublisher:
             health NOT_SERVING); None: the start timeout alone decides.
         clock: wall clock, UNIX seconds (time stamps in the frames).
         run_id: identity of the run; a random one by default.
+        pace: "ticks" or "acks" (PACES).
+        monotonic: the clock of the pace (ticks, the cap) and of pace "acks"' simulation time,
+            seconds.
     """
 
     def __init__(self, *, source: Callable[[float], Eyepoint | FrameInput], channels: Sequence[str],
                  rate_hz: float = 60.0, duration_s: float = 20.0, sync_timeout_s: float = 10.0,
                  observers: int = 0, start_timeout_s: float = 120.0,
                  clock: Callable[[], float] = time.time, run_id: str | None = None,
-                 starting: Callable[[str], bool] | None = None) -> None:
+                 starting: Callable[[str], bool] | None = None, pace: str = "ticks",
+                 monotonic: Callable[[], float] = time.monotonic) -> None:
+        if pace not in PACES:
+            raise ValueError(f"pace: {pace!r} is not one of {', '.join(PACES)}")
         # `not x > 0` rather than `x <= 0` so that NaN is refused too.
         if not (rate_hz > 0 and math.isfinite(rate_hz)):
             raise ValueError(f"rate_hz: {rate_hz} must be a finite number > 0")
@@ -161,6 +181,8 @@ class FramePublisher:
         self.observers = observers
         self.start_timeout_s = start_timeout_s
         self.clock = clock
+        self.pace = pace
+        self.monotonic = monotonic
         self.starting = starting
         self.status = HostStatus(run_id=run_id or uuid.uuid4().hex[:12])
         self.status.ack_timeouts = dict.fromkeys(self.channels, 0)
@@ -179,7 +201,8 @@ class FramePublisher:
 
     @property
     def tick_count(self) -> int:
-        """Ticks in the run: one per 1 / rate_hz of simulated time, both ends included."""
+        """Ticks in the run with pace "ticks": one per 1 / rate_hz of simulated time, both ends
+        included."""
         return int(round(self.duration_s * self.rate_hz)) + 1
 
     def subscribe(self, subscriber: str, channel_name: str) -> Subscription:
@@ -286,50 +309,88 @@ class FramePublisher:
         """
         try:
             self._wait_for_subscribers(stop)
-            period = 1.0 / self.rate_hz
-            next_tick = time.monotonic()
-            number = 0
-            for tick in range(self.tick_count):
-                if stop.is_set():
-                    break
-                # Never faster than the rate. When the channels took longer than a period the
-                # frame goes at once and the schedule restarts from now: the host never bursts
-                # frames to catch up with the wall clock (the simulation runs slow instead).
-                delay = next_tick - time.monotonic()
-                if delay > 0 and stop.wait(delay):
-                    break
-                next_tick = max(next_tick, time.monotonic()) + period
-                sim_time = tick / self.rate_hz
-                sample_time = self.clock()
-                given = self.source(sim_time)
-                extras = given if isinstance(given, FrameInput) else FrameInput(given)
-                if extras.new_run and number > 0:
-                    self._new_run()
-                    number = 0
-                eyepoint = extras.eyepoint
-                if extras.sample_time is not None:
-                    sample_time = extras.sample_time
-                if eyepoint is None:
-                    with self._lock:
-                        self.status.idle_ticks += 1
-                    continue
-                try:
-                    check_eyepoint(eyepoint)
-                except ValueError as exc:
-                    with self._lock:
-                        self.status.eyepoints_rejected += 1
-                        self.status.last_error = f"t={sim_time:.3f}s: {exc}"
-                    log.error("eyepoint refused at t=%.3f s: %s", sim_time, exc)
-                    continue
-                frame = self._publish(number, sim_time, sample_time, eyepoint, extras)
-                self._wait_for_acks(number, frame.channels, stop)
-                number += 1
+            if self.pace == "ticks":
+                self._run_ticks(stop)
+            else:
+                self._run_acks(stop)
         finally:
             with self._lock:
                 self.status.finished = True
                 subs = list(self._subs)
             for sub in subs:
                 sub.close()
+
+    def _run_ticks(self, stop: threading.Event) -> None:
+        log.info("pace ticks: a frame every 1 / %g s of simulated time, each at its tick", self.rate_hz)
+        period = 1.0 / self.rate_hz
+        next_tick = self.monotonic()
+        number = 0
+        for tick in range(self.tick_count):
+            # Never faster than the rate. When the channels took longer than a period the
+            # frame goes at once and the schedule restarts from now: the host never bursts
+            # frames to catch up with the wall clock (the simulation runs slow instead).
+            if not self._sleep_until(next_tick, stop):
+                return
+            next_tick = max(next_tick, self.monotonic()) + period
+            number = self._frame(number, tick / self.rate_hz, stop)
+
+    def _run_acks(self, stop: threading.Event) -> None:
+        # The acknowledgements of the previous frame are in when _frame returns: the next one
+        # goes now, unless that would be faster than the cap.
+        log.info("pace acks: each frame as soon as the last one is acknowledged, at most %g a second; "
+                 "simulation time in real time", self.rate_hz)
+        period = 1.0 / self.rate_hz
+        due = self.monotonic()
+        start = None
+        number = 0
+        while self._sleep_until(due, stop):
+            now = self.monotonic()
+            start = now if start is None else start
+            last = now - start >= self.duration_s
+            due = now + period
+            number = self._frame(number, self.duration_s if last else now - start, stop)
+            if last:
+                return
+
+    def _sleep_until(self, due: float, stop: threading.Event) -> bool:
+        """Wait until the monotonic clock reaches due; False if stop was set meanwhile."""
+        while (delay := due - self.monotonic()) > 0:
+            if stop.wait(delay):
+                return False
+        return not stop.is_set()
+
+    def _frame(self, number: int, sim_time: float, stop: threading.Event) -> int:
+        """Sample the source at sim_time, publish its frame as number and wait for the
+        acknowledgements; the number of the next frame.
+
+        The wall clock is read right before the source, which polls the controls: that is the
+        frame's control sample time (unless the source says when its data arrived), and nothing
+        but the source runs between it and the publication.
+        """
+        sample_time = self.clock()
+        given = self.source(sim_time)
+        extras = given if isinstance(given, FrameInput) else FrameInput(given)
+        if extras.new_run and number > 0:
+            self._new_run()
+            number = 0
+        eyepoint = extras.eyepoint
+        if extras.sample_time is not None:
+            sample_time = extras.sample_time
+        if eyepoint is None:
+            with self._lock:
+                self.status.idle_ticks += 1
+            return number
+        try:
+            check_eyepoint(eyepoint)
+        except ValueError as exc:
+            with self._lock:
+                self.status.eyepoints_rejected += 1
+                self.status.last_error = f"t={sim_time:.3f}s: {exc}"
+            log.error("eyepoint refused at t=%.3f s: %s", sim_time, exc)
+            return number
+        frame = self._publish(number, sim_time, sample_time, eyepoint, extras)
+        self._wait_for_acks(number, frame.channels, stop)
+        return number + 1
 
     def _new_run(self) -> None:
         """Start a new run: a new id, frame numbers from 0, the barrier forgotten."""

@@ -119,8 +119,12 @@ def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
     health = add_health(server, [SERVICE], refused=publisher.refuse)
     port = bind(server, address, security)
     server.start()
-    log.info("host listening on %s (run %s, %d frames at %.1f Hz)", address, publisher.status.run_id,
-             publisher.tick_count, publisher.rate_hz)
+    if publisher.pace == "ticks":
+        log.info("host listening on %s (run %s, %d frames at %.1f Hz)", address, publisher.status.run_id,
+                 publisher.tick_count, publisher.rate_hz)
+    else:
+        log.info("host listening on %s (run %s, %g simulated s paced by the rig, at most %.1f Hz)", address,
+                 publisher.status.run_id, publisher.duration_s, publisher.rate_hz)
     runner = threading.Thread(target=publisher.run, args=(stop,), name="publisher", daemon=True)
     runner.start()
     while runner.is_alive() and not stop.wait(0.2):

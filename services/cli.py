@@ -29,8 +29,9 @@ COMMANDS = {
                "sRGB 8-bit."),
     "host": ("host_sim.cli_host", "publish eyepoints frame-locked to the rig: the bundled flight, a flight model "
              "flown by CAN/serial controls, or a replayed flight log",
-             "Serve HostService: publish frames at a fixed rate, waiting for every channel to acknowledge "
-             "each frame (docs/frame-lock.md). Serves gRPC health; SIGTERM stops it cleanly."),
+             "Serve HostService: publish frames at a fixed rate, or paced by the rig (--pace acks), waiting for "
+             "every channel to acknowledge each frame (docs/frame-lock.md). Serves gRPC health; SIGTERM stops "
+             "it cleanly."),
     "status": ("host_sim.cli_status", "print a running host's status as JSON",
                "Ask the rig's host for its status (GetHostStatus): frames published, acknowledgements, the "
                "eyepoint source and, following a CIGI host, its version, messages, packets used and unused, "

@@ -1,14 +1,17 @@
 """`ig demo`: the whole rig as separate processes on this machine, on the bundled flight.
 
-The host's rate is what the rig sustains (`--rate auto`, the default): after the kernels are
-compiled and the workers are up, a short calibration run publishes the flight's first frames
-as fast as the channels acknowledge them (frame-locked, docs/frame-lock.md), and the median
-interval between their composites sets the rate of the real run. The flight then plays in real
-time at that rate, as long as the rig keeps it up (the calibration frames stand on the runway;
-later views may take longer, and recording takes CPU time): on the 2-core development machine
-the default rig (three 1024 x 768 channels, 4 samples) measured 2.5 Hz and delivered 2.3
-composites a second, 51 frames in 37 s with the compile and the calibration. A fixed `--rate`
-above what the rig sustains slows the simulation instead (frame lock).
+The host is paced by the rig (`--rate auto`, the default): it publishes each frame as soon as
+every channel has acknowledged the previous one (at most AUTO_RATE_MAX_HZ), samples the controls
+just before, and takes simulation time from the wall clock, so the flight plays in real time
+at whatever rate the rig renders (docs/frame-lock.md, `ig host --pace acks`). A short
+calibration run first publishes the flight's first frames as fast as the channels acknowledge
+them; the median interval between their composites sizes the recording (`--record-every auto`)
+and the progress line's frame count, and no longer paces anything. (With the host at the
+calibrated fixed rate, as before, the default rig, three 1024 x 768 channels with 4 samples,
+measured 2.5 Hz on the 2-core development machine and delivered 2.3 composites a second, 51
+frames in 37 s with the compile and the calibration.) A fixed `--rate HZ`
+publishes at that rate instead (`--pace ticks`): above what the rig sustains it slows the
+simulation (frame lock).
 
 The building blocks (the processes, the kernels compiled once, the workers, the calibration)
 serve `ig latency` too (services/latency.py).
@@ -75,6 +78,14 @@ def rate_or_auto(text: str) -> float | None:
     return None if text == "auto" else positive(text)
 
 
+def host_pace_args(rate_hz: float | None) -> list[str]:
+    """`ig host` options for --rate: auto (None) paces the host by the rig's acknowledgements,
+    at most AUTO_RATE_MAX_HZ; a rate, Hz, is a fixed rate (docs/frame-lock.md)."""
+    if rate_hz is None:
+        return ["--pace", "acks", "--rate", repr(AUTO_RATE_MAX_HZ)]
+    return ["--pace", "ticks", "--rate", repr(rate_hz)]
+
+
 def every_or_auto(text: str) -> int | None:
     """argparse type: `auto` (None) or a period in frames, a whole number >= 0 (0: never)."""
     if text == "auto":
@@ -111,10 +122,10 @@ def add_rig_options(parser: argparse.ArgumentParser, *, out: str) -> None:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig demo`."""
     parser.add_argument("--rate", type=rate_or_auto, default=None,
-                        help="host frame rate, Hz, or auto (default): what the rig sustains, measured by a "
-                             f"calibration run of {CALIBRATION_FRAMES} frames published as fast as the channels "
-                             f"render them (at most {AUTO_RATE_MAX_HZ:g} Hz). The run is frame-locked: a rate "
-                             "above what the rig renders slows the simulation")
+                        help="auto (default): the host paced by the rig, each frame as soon as every channel "
+                             f"acknowledged the last (at most {AUTO_RATE_MAX_HZ:g} Hz), the flight in real time; "
+                             "or a fixed host frame rate, Hz, frame-locked: a rate above what the rig renders "
+                             "slows the simulation")
     parser.add_argument("--duration", type=non_negative, default=20.0,
                         help="simulated seconds of the bundled flight to fly (default 20)")
     parser.add_argument("--record-every", type=every_or_auto, default=None,
@@ -390,7 +401,8 @@ def wait_for_exit(procs: Processes, proc: subprocess.Popen, stop: StopFlag, *,
 
 def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
                    stop: StopFlag) -> tuple[float, Failure | None]:
-    """The rate the rig sustains, Hz, measured with the workers already started.
+    """The rate the rig sustains, Hz, measured with the workers already started (it sizes
+    `ig demo`'s recording and progress; the host of the real run is paced by the rig itself).
 
     The host publishes the bundled flight's first CALIBRATION_FRAMES frames as fast as every
     channel acknowledges them (frame-locked at a rate no rig reaches); the compositor (recording
@@ -476,7 +488,10 @@ def run(args: argparse.Namespace) -> int:
     print(format_report(doc))
     print(f"\n{doc['frames_complete']} stitched frames in {time.monotonic() - started:.0f} s wall-clock")
     achieved = doc.get("composite_rate_hz")
-    if achieved:
+    if achieved and args.rate is None:
+        print(f"composites came at {achieved:.2f} Hz (median), the host paced by the rig: the flight ran in "
+              "real time")
+    elif achieved:
         print(f"composites came at {achieved:.2f} Hz (median) for a host rate of {rate:g} Hz" +
               (f": the rig was slower, so the flight ran at {achieved / rate:.0%} of real time"
                if achieved < 0.95 * rate else ""))
@@ -495,8 +510,9 @@ def record_every_for(rate_hz: float) -> int:
 
 def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argparse.Namespace,
              scene: list[str], stop: StopFlag) -> tuple[Failure | None, float]:
-    """Start a worker per channel, measure the rate if asked, then the compositor and the host;
-    watch until the run is over. Returns the first failure, and the host's rate, Hz."""
+    """Start a worker per channel, measure the rate with --rate auto, then the compositor and the
+    host; watch until the run is over. Returns the first failure, and the rate, Hz: the fixed
+    one, or with --rate auto the one measured (the host is then paced by the rig)."""
     start_workers(procs, rig, rig_path, scene)
     rate = args.rate
     if rate is None:
@@ -506,18 +522,23 @@ def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argpar
         rate = round(rate, 2)
     record_every = args.record_every if args.record_every is not None else record_every_for(rate)
     expected = int(round(args.duration * rate)) + 1
-    print(f"ig demo: {expected} frames at {rate:g} Hz, PNG every {record_every} frame(s), EXR every "
-          f"{args.exr_every}", flush=True)
+    pace = (f"about {expected} frames at the {rate:g} Hz measured, the host paced by the rig (at most "
+            f"{AUTO_RATE_MAX_HZ:g} Hz)"
+            if args.rate is None else f"{expected} frames at {rate:g} Hz")
+    print(f"ig demo: {pace}, PNG every {record_every} frame(s), EXR every {args.exr_every}", flush=True)
     compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
                                             "--record-every", str(record_every), "--exr-every", str(args.exr_every),
                                             "--once"])
-    procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(rate), "--duration", str(args.duration)])
-    return _watch(procs, compositor, rig.compositor_address, expected, stop), rate
+    procs.start("host", ["host", "--rig", str(rig_path), *host_pace_args(args.rate),
+                         "--duration", str(args.duration)])
+    return _watch(procs, compositor, rig.compositor_address, expected, stop, estimated=args.rate is None), rate
 
 
 def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expected: int,
-           stop: StopFlag) -> Failure | None:
+           stop: StopFlag, *, estimated: bool = False) -> Failure | None:
     """Show progress until the compositor exits; (name, exit code) of the first process that failed.
+
+    expected is the run's frame count, an estimate when the host is paced by the rig.
 
     One failed process ends the demo at once: without it the host would wait out its start
     and sync timeouts for a channel that will never answer. A raised stop flag (a signal)
@@ -539,7 +560,7 @@ def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expecte
         if progress is None:
             continue
         line = (f"  frames complete {progress.frames_complete:5d} / published {progress.frames_published:5d}"
-                f" / run {expected}")
+                f" / run {'about ' if estimated else ''}{expected}")
         if line != last and (tty or time.monotonic() >= next_line):
             print("\r" + line if tty else line, end="" if tty else "\n", flush=True)
             next_line = time.monotonic() + 10.0

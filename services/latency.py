@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import queue
 import random
@@ -49,13 +48,14 @@ from ig.v1 import compositor_pb2, compositor_pb2_grpc
 from services.compositor.gather import percentiles
 from services.compositor.timing import HOPS, hop_seconds
 from services.demo import (
+    AUTO_RATE_MAX_HZ,
     EXIT_INTERRUPTED,
     Failure,
     Processes,
     StopFlag,
     add_rig_options,
-    calibrate_rate,
     compile_kernels,
+    host_pace_args,
     milliseconds_cells,
     prepare_rig,
     rate_or_auto,
@@ -76,7 +76,7 @@ PART60_LIMITS: tuple[tuple[str, float], ...] = (
 )
 
 #: The first hop of the harness's chain, before the compositor's HOPS.
-CONTROL_HOP = ("control_to_host_sample", "cockpit -> host: CAN frame, wait for the host's next tick")
+CONTROL_HOP = ("control_to_host_sample", "cockpit -> host: CAN frame, wait for the host's next sample")
 
 #: How often the cockpit repeats the pitch control, Hz (a CANaerospace node sends at 20 Hz or more).
 CONTROL_HZ = 20.0
@@ -87,9 +87,12 @@ _FIRST_COMPOSITE_S = 300.0
 _NEXT_COMPOSITE_S = 60.0
 #: Settling: this many consecutive frame-to-frame shifts must be below a quarter of the threshold.
 _SETTLE_FRAMES = 3
-#: Simulated seconds to wait for the picture to settle before stepping anyway (15 stick lags).
+#: Simulated seconds to wait for the picture to settle before stepping anyway (15 stick lags),
+#: and at least this many frames. Counted in the frames' simulation time, not in frames: with the
+#: host paced by the rig the frame intervals vary, and the stick lag runs in simulated time.
 _SETTLE_MAX_SIM_S = 6.0
-#: Simulated seconds, and frames, within which a step's response must show.
+_SETTLE_MIN_FRAMES = _SETTLE_FRAMES + 2
+#: Simulated seconds, and at least this many frames, within which a step's response must show.
 _RESPONSE_MAX_SIM_S = 2.0
 _RESPONSE_MAX_FRAMES = 10
 
@@ -363,7 +366,7 @@ class Composites:
 
 
 def measure_steps(composites: Composites, cockpit: SlcanCockpit, *, steps: int, levels: tuple[float, float],
-                  threshold_px: float, rate_hz: float, log=print) -> list[StepResult]:
+                  threshold_px: float, log=print) -> list[StepResult]:
     """Step the pitch control `steps` times between levels and detect each response (module doc).
 
     The stick starts at the high level, so that the first step, down, runs against the nose
@@ -374,18 +377,21 @@ def measure_steps(composites: Composites, cockpit: SlcanCockpit, *, steps: int, 
     between composites after the picture settled: stepping right after a composite would
     always catch the host at the same point of its cycle, where Part 60 expects the input
     "at any time in the iteration".
+
+    The waits for the picture to settle and for the response are bounded in the composites'
+    simulation time (and a least number of composites), so they hold at any rate, fixed or
+    paced by the rig.
     """
     phase = random.Random(0)  # the same moments on every run, for comparable runs
     results: list[StepResult] = []
-    settle_max = max(_SETTLE_FRAMES + 2, int(math.ceil(_SETTLE_MAX_SIM_S * rate_hz)))
-    response_max = max(_RESPONSE_MAX_FRAMES, int(math.ceil(_RESPONSE_MAX_SIM_S * rate_hz)))
     position = 1
     previous = composites.next()
     composites.missed(previous)
     for index in range(1, steps + 1):
         # Settle: the picture has stopped moving (the stick lag has run its course).
-        quiet, waited = 0, 0
-        while quiet < _SETTLE_FRAMES and waited < settle_max:
+        quiet, waited, settle_from = 0, 0, previous.sim_time_s
+        while quiet < _SETTLE_FRAMES and not _waited_enough(waited, previous.sim_time_s - settle_from,
+                                                            _SETTLE_MIN_FRAMES, _SETTLE_MAX_SIM_S):
             c = composites.next()
             shift = profile_shift(composites.profile(c), composites.profile(previous))
             composites.missed(c)
@@ -407,7 +413,12 @@ def measure_steps(composites: Composites, cockpit: SlcanCockpit, *, steps: int, 
         position = 1 - position
         ref_profile, ref_pitch = composites.profile(reference), reference.eyepoint.pitch_deg
         eyepoint_moved: int | None = None
-        for _ in range(response_max):
+        while True:
+            if _waited_enough(result.composites_after_step, previous.sim_time_s - reference.sim_time_s,
+                              _RESPONSE_MAX_FRAMES, _RESPONSE_MAX_SIM_S):
+                result.problem = (f"no response within {result.composites_after_step} composites "
+                                  f"({previous.sim_time_s - reference.sim_time_s:.2f} simulated s)")
+                break
             c = composites.next()
             previous = c
             result.composites_after_step += 1
@@ -435,11 +446,15 @@ def measure_steps(composites: Composites, cockpit: SlcanCockpit, *, steps: int, 
                 elif not result.settled:
                     result.problem = "the picture had not settled before the step"
                 break
-        else:
-            result.problem = f"no response within {response_max} composites"
         results.append(result)
         log(format_step(result))
     return results
+
+
+def _waited_enough(frames: int, sim_s: float, min_frames: int, min_sim_s: float) -> bool:
+    """A wait of frames composites spanning sim_s simulated seconds has lasted at least min_frames
+    composites and min_sim_s simulated seconds."""
+    return frames >= min_frames and sim_s >= min_sim_s
 
 
 # --- the report ----------------------------------------------------------------------------------
@@ -478,14 +493,21 @@ def format_step(r: StepResult) -> str:
             f"{r.latency_ms:7.1f} ms{late}{note}")
 
 
-def format_summary(summary: dict, verdicts: list[dict], *, rate_hz: float, size: str) -> str:
+def host_pace(rate_hz: float | None) -> str:
+    """How the host was paced, for the report: by the rig (rate_hz None) or at a fixed rate."""
+    if rate_hz is None:
+        return f"host paced by the rig (at most {AUTO_RATE_MAX_HZ:g} Hz)"
+    return f"host at {rate_hz:g} Hz"
+
+
+def format_summary(summary: dict, verdicts: list[dict], *, rate_hz: float | None, size: str) -> str:
     """The table `ig latency` prints."""
     labels = dict([CONTROL_HOP, *HOPS])
     rows = [("control step -> composite", summary["control_to_composite"])]
     rows += [(f"  {labels[k]}", p) for k, p in summary["chain"].items()]
     width = max(len(n) for n, _ in rows)
-    lines = [f"ig latency: {summary['measured']} of {summary['steps']} steps measured; rig {size}, host at "
-             f"{rate_hz:g} Hz", "",
+    lines = [f"ig latency: {summary['measured']} of {summary['steps']} steps measured; rig {size}, "
+             f"{host_pace(rate_hz)}", "",
              f"  {'milliseconds':<{width}}  {'p50':>9} {'p95':>9} {'p99':>9} {'max':>9}"]
     lines += [f"  {name:<{width}}  {milliseconds_cells(p)}" for name, p in rows]
     lines += ["", "  (the chain follows, for each step, the channel whose image the composite waited for;",
@@ -508,8 +530,10 @@ def format_summary(summary: dict, verdicts: list[dict], *, rate_hz: float, size:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig latency`."""
     parser.add_argument("--rate", type=rate_or_auto, default=None,
-                        help="host frame rate, Hz, or auto (default): what the rig sustains, measured first as "
-                             "ig demo does. Any rate works: above what the rig renders, the host goes as fast as "
+                        help="auto (default): the host paced by the rig, each frame as soon as every channel "
+                             f"acknowledged the last (at most {AUTO_RATE_MAX_HZ:g} Hz), the controls sampled just "
+                             "before it; or a fixed host frame rate, Hz. Any rate works: above what the rig "
+                             "renders, the host goes as fast as "
                              "the channels acknowledge (frame lock)")
     parser.add_argument("--steps", type=_count, default=10, help="steps of the pitch control to measure (default 10)")
     parser.add_argument("--step-size", type=positive, default=0.5,
@@ -582,7 +606,8 @@ def run(args: argparse.Namespace) -> int:
             if tail and name != "compile":
                 print(f"--- last lines of {work / 'logs' / (name + '.log')} ---\n{tail}")
         return EXIT_FAILED
-    results, rate = outcome
+    results = outcome
+    rate = args.rate
     summary = summarise(results)
     verdicts = limits_verdict(summary)
     report_path = work / "latest" / "report.json"
@@ -591,7 +616,10 @@ def run(args: argparse.Namespace) -> int:
         "rig": {"channels": list(rig.channel_names), "width": spec.width, "height": spec.height,
                 "samples": str(rig.render.samples), "filter": rig.render.filter, "scene": scene_path,
                 "threads_per_worker": rig.render.threads},
-        "rate_hz": rate, "watched_channel": channel, "stick_levels": list(levels), "threshold_px": args.threshold,
+        # rate_hz: the fixed rate, or null when the host was paced by the rig (at most max_rate_hz).
+        "rate_hz": rate, "pace": "ticks" if rate is not None else "acks",
+        "max_rate_hz": rate if rate is not None else AUTO_RATE_MAX_HZ,
+        "watched_channel": channel, "stick_levels": list(levels), "threshold_px": args.threshold,
         "input": "CANaerospace pitch_control_position over slcan (pseudo-terminal), python-can in the host",
         "summary": summary, "part60": verdicts,
         "steps": [asdict(r) for r in results],
@@ -608,29 +636,25 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _measure(procs: Processes, rig: Rig, rig_path: Path, scene: list[str], work: Path, args: argparse.Namespace,
-             channel: str, levels: tuple[float, float], stop: StopFlag) -> tuple[list[StepResult], float] | str:
+             channel: str, levels: tuple[float, float], stop: StopFlag) -> list[StepResult] | str:
     """Start the rig, measure, stop the host and let the compositor write its report; the step
-    results and the rate, or why not."""
+    results, or why not.
+
+    With --rate auto the host is paced by the rig (no calibration run: the rate the rig
+    sustains is what the compositor reports)."""
     failure: Failure | None = compile_kernels(procs, "latency", rig_path, scene, stop)
     if failure or stop.why:
         return f"{failure[0]} exited with code {failure[1]}" if failure else ""
     start_workers(procs, rig, rig_path, scene)
-    rate = args.rate
-    if rate is None:
-        rate, failure = calibrate_rate(procs, "latency", rig_path, work / "calibration", stop)
-        if failure or stop.why:
-            return f"{failure[0]} exited with code {failure[1]}" if failure else ""
-        rate = round(rate, 2)
     compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(work),
                                             "--record-every", "0", "--exr-every", "0", "--once"])
     cockpit = SlcanCockpit(levels[1])  # where measure_steps starts
     composites = None
     try:
-        procs.start("host", ["host", "--rig", str(rig_path), "--rate", str(rate), "--controls", cockpit.url])
+        procs.start("host", ["host", "--rig", str(rig_path), *host_pace_args(args.rate), "--controls", cockpit.url])
         composites = Composites(rig.compositor_address, channel, procs, stop)
-        print(f"ig latency: host at {rate:g} Hz; waiting for the picture to settle before each step", flush=True)
-        results = measure_steps(composites, cockpit, steps=args.steps, levels=levels, threshold_px=args.threshold,
-                                rate_hz=rate)
+        print(f"ig latency: {host_pace(args.rate)}; waiting for the picture to settle before each step", flush=True)
+        results = measure_steps(composites, cockpit, steps=args.steps, levels=levels, threshold_px=args.threshold)
     except RigFailed as exc:
         return str(exc)
     finally:
@@ -642,4 +666,4 @@ def _measure(procs: Processes, rig: Rig, rig_path: Path, scene: list[str], work:
         cockpit.close()
     print(f"ig latency: the cockpit sent {cockpit.frames_sent} CAN frames ({cockpit.frames_dropped} more while the "
           "host was not reading yet)", flush=True)
-    return results, rate
+    return results

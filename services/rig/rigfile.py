@@ -11,6 +11,16 @@ from typing import Any
 from .frame import MAX_CHANNEL_PIXELS, ChannelSpec
 from .options import RenderOptions
 
+#: How the host paces its frames (the ``[sync]`` table's ``pace``): name -> what it means, for
+#: --help and the rig file's errors (docs/frame-lock.md).
+PACES = {
+    "ticks": "a fixed rate: frame k at the k-th tick of --rate, simulation time k / rate (replays "
+             "and tests that need exact simulation times)",
+    "acks": "paced by the rig: the next frame as soon as every channel acknowledged the previous one, "
+            "at most --rate a second; simulation time is the wall clock's, so the flight flies in real "
+            "time and an input waits at most for the frame in flight",
+}
+
 #: Channels a rig may have: the swap barrier and the compositor's bounds scale with it, and
 #: no projection dome uses more.
 MAX_CHANNELS = 64
@@ -32,12 +42,14 @@ class SyncSpec:
         max_pending_frames: frames the compositor holds open at once; opening one more
             finalises the oldest as incomplete.
         max_pending_mib: pixels those frames may hold, MiB; the same when exceeded.
+        pace: how the host paces its frames, a name of PACES.
     """
 
     frame_timeout_s: float = 5.0
     pending_timeout_s: float = 10.0
     max_pending_frames: int = 16
     max_pending_mib: float = 512.0
+    pace: str = "ticks"
 
 
 @dataclass(frozen=True)
@@ -280,9 +292,17 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         if address in seen:
             raise fail(where, f"{address!r} is already used by {seen[address]}")
         seen[address] = where
-    sync = SyncSpec(**_table(doc, "sync", {
+    sync_table = doc.get("sync", {})
+    pace = SyncSpec.pace
+    if isinstance(sync_table, dict) and "pace" in sync_table:
+        sync_table = dict(sync_table)
+        pace = sync_table.pop("pace")
+        if not isinstance(pace, str) or pace not in PACES:
+            raise fail("sync.pace", f"{pace!r} is not one of {', '.join(PACES)}")
+    sync = SyncSpec(**_table({"sync": sync_table}, "sync", {
         "frame_timeout_s": (float, 0.001, 3600.0), "pending_timeout_s": (float, 0.001, 3600.0),
-        "max_pending_frames": (int, 1, 4096), "max_pending_mib": (float, 1.0, 65536.0)}, fail))
+        "max_pending_frames": (int, 1, 4096), "max_pending_mib": (float, 1.0, 65536.0)}, fail,
+        also=("pace",)), pace=pace)
     blend = BlendSpec(**_table(doc, "blend", {
         "overlap_deg": (float, 0.0, 45.0), "power": (float, 0.5, 16.0), "gamma": (float, 1.0, 4.0),
         "tolerance_deg": (float, 0.0, 10.0)}, fail))
@@ -338,15 +358,17 @@ def _cigi(doc: dict[str, Any], channels: tuple[str, ...], fail) -> CigiSpec:
     return CigiSpec(**out, configured="cigi" in doc)
 
 
-def _table(doc: dict[str, Any], name: str, keys: dict[str, tuple[type, float, float]], fail) -> dict[str, Any]:
-    """The numeric keys of an optional table, each checked against its type and range."""
+def _table(doc: dict[str, Any], name: str, keys: dict[str, tuple[type, float, float]], fail, *,
+           also: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The numeric keys of an optional table, each checked against its type and range; also:
+    the table's other keys, read by the caller (named with the known keys)."""
     table = doc.get(name, {})
     if not isinstance(table, dict):
         raise fail(name, f"{table!r} is not a table")
     out: dict[str, Any] = {}
     for key, value in table.items():
         if key not in keys:
-            raise fail(f"{name}.{key}", f"unknown key (known: {', '.join(keys)})")
+            raise fail(f"{name}.{key}", f"unknown key (known: {', '.join((*keys, *also))})")
         kind, lo, hi = keys[key]
         number = isinstance(value, int) if kind is int else isinstance(value, (int, float))
         if isinstance(value, bool) or not number or not math.isfinite(value) or not lo <= value <= hi:

@@ -40,7 +40,8 @@ def test_errors_name_the_problem(csv_log, capsys):
 @pytest.mark.parametrize("argv", [["--controls", "can://virtual/x", "--replay", "f.csv"],
                                   ["--replay", "f.csv", "--replay-origin", "100,0,0"],
                                   ["--replay", "f.csv", "--replay-format", "kml"],
-                                  ["--replay", "f.csv", "--speed", "0"]])
+                                  ["--replay", "f.csv", "--speed", "0"],
+                                  ["--pace", "fast"]])
 def test_bad_options_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["host", *argv])

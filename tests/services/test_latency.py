@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -15,8 +16,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from ig.v1 import compositor_pb2
 from services.compositor.timing import HOPS
-from services.latency import CONTROL_HOP, PART60_LIMITS, StepResult, limits_verdict, profile_shift, summarise
+from services.latency import (
+    CONTROL_HOP,
+    PART60_LIMITS,
+    StepResult,
+    limits_verdict,
+    measure_steps,
+    profile_shift,
+    summarise,
+)
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 
@@ -63,6 +73,66 @@ def test_bad_options_exit_2_before_starting_anything(tmp_path):
     assert main(["latency", "--step-size", "1.5", "--work", str(work)]) == 2
     assert main(["latency", "--channel", "middle", "--work", str(work), "--width", "16", "--height", "12"]) == 2
     assert not work.exists()
+
+
+def test_auto_paces_the_host_by_the_rig_and_a_rate_is_a_fixed_rate():
+    import argparse
+
+    from host_sim import cli_host
+    from services.demo import AUTO_RATE_MAX_HZ, host_pace_args
+
+    parser = argparse.ArgumentParser()
+    cli_host.add_arguments(parser)
+    auto = parser.parse_args(host_pace_args(None))
+    assert (auto.pace, auto.rate) == ("acks", AUTO_RATE_MAX_HZ)
+    fixed = parser.parse_args(host_pace_args(15.0))
+    assert (fixed.pace, fixed.rate) == ("ticks", 15.0)
+
+
+class StillComposites:
+    """A rig whose picture never moves, its composites at the given (repeating) simulated
+    intervals: the settle and response waits must end on simulated time, whatever the frames."""
+
+    def __init__(self, intervals):
+        self.intervals = intervals
+        self.k = 0
+        self.sim = 0.0
+
+    def next(self):
+        c = compositor_pb2.WatchCompositesResponse(frame_number=self.k, sim_time_s=self.sim,
+                                                   composite_time_unix_s=1e-6 * self.k)
+        c.profiles.add(luminance=horizon(48, 20.0).tolist())
+        self.sim += self.intervals[self.k % len(self.intervals)]
+        self.k += 1
+        return c
+
+    def poll(self, deadline):
+        return None
+
+    def profile(self, c):
+        return np.asarray(c.profiles[0].luminance, np.float32)
+
+    def missed(self, c):
+        return 0
+
+
+class StillCockpit:
+    def set_pitch(self, pitch):
+        return 0.0
+
+
+@pytest.mark.parametrize("intervals,frames", [((0.5,), 10), ((0.01,), 200), ((0.3, 0.01, 0.05), None)])
+def test_a_step_without_response_gives_up_after_two_simulated_seconds_and_ten_frames(intervals, frames):
+    rig = StillComposites(intervals)
+    [result] = measure_steps(rig, StillCockpit(), steps=1, levels=(0.25, 0.75), threshold_px=0.1, log=lambda _: None)
+    assert result.settled and not result.detected
+    n = result.composites_after_step
+    span = float(re.fullmatch(rf"no response within {n} composites \((.*) simulated s\)", result.problem)[1])
+    # Both bounds were reached, and the last composite was the one that reached the later one.
+    assert n >= 10 and span >= 2.0
+    assert n == 10 or span - max(intervals) < 2.0
+    if frames is not None:
+        assert n == frames
 
 
 @pytest.mark.integration

@@ -56,6 +56,8 @@ def doc():
     (lambda d: d.update(render={"terrain_bias": 7}),
      r"r.toml: render.terrain_bias: expected an integer in -4..4, got 7"),
     (lambda d: d.update(render=4), r"r.toml: render: expected a table of render options"),
+    (lambda d: d.update(sync={"pace": "fast"}), r"r.toml: sync.pace: 'fast' is not one of ticks, acks"),
+    (lambda d: d.update(sync={"pase": "acks"}), r"sync.pase: unknown key \(known: .*max_pending_mib, pace\)"),
 ])
 def test_bad_rig_names_key_and_value(mutate, pattern):
     d = doc()
@@ -101,3 +103,12 @@ def test_the_render_table_sets_every_workers_options_and_round_trips():
     assert again == parse_rig(tomllib.loads(rig_toml(rig)))
     assert again.render == rig.render and again.channels == rig.channels
     assert "[render]" not in rig_toml(parse_rig(doc()))  # defaults are not written out
+
+
+def test_the_sync_pace_defaults_to_ticks_and_round_trips():
+    assert parse_rig(doc()).sync.pace == "ticks"
+    d = doc()
+    d["sync"] = {"pace": "acks", "frame_timeout_s": 0.1}
+    rig = parse_rig(d)
+    assert (rig.sync.pace, rig.sync.frame_timeout_s) == ("acks", 0.1)
+    assert parse_rig(tomllib.loads(rig_toml(rig))).sync == rig.sync
