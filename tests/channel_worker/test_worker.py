@@ -4,7 +4,8 @@ import logging
 
 import numpy as np
 
-from channel_worker.worker import ChannelWorker, LatestFrame, encode_rgb_f16
+from channel_worker.submit import encode_rgb_f16
+from channel_worker.worker import ChannelWorker, LatestFrame
 from ig.v1 import frame_pb2
 from services.rig.frame import ChannelSpec
 from services.rig.options import RenderOptions
