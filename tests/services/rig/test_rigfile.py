@@ -5,7 +5,7 @@ import tomllib
 import pytest
 
 from services.rig.options import RenderOptions
-from services.rig.rigfile import RigError, channel_spec, default_rig_path, load_rig, parse_rig, rig_toml
+from services.rig.rigfile import RigError, WireSpec, channel_spec, default_rig_path, load_rig, parse_rig, rig_toml
 
 ROOT = default_rig_path().parents[3]
 
@@ -56,6 +56,9 @@ def doc():
     (lambda d: d.update(render={"terrain_bias": 7}),
      r"r.toml: render.terrain_bias: expected an integer in -4..4, got 7"),
     (lambda d: d.update(render=4), r"r.toml: render: expected a table of render options"),
+    (lambda d: d["compositor"].update(wire="rgb8"), r"r.toml: compositor.wire: 'rgb8' is not one of 'srgb8', 'half'"),
+    (lambda d: d["compositor"].update(shared_memory="yes"), r"r.toml: compositor.shared_memory: 'yes' is not true"),
+    (lambda d: d["compositor"].update(shm=True), r"r.toml: compositor.shm: unknown key \(known: address, wire"),
 ])
 def test_bad_rig_names_key_and_value(mutate, pattern):
     d = doc()
@@ -101,3 +104,13 @@ def test_the_render_table_sets_every_workers_options_and_round_trips():
     assert again == parse_rig(tomllib.loads(rig_toml(rig)))
     assert again.render == rig.render and again.channels == rig.channels
     assert "[render]" not in rig_toml(parse_rig(doc()))  # defaults are not written out
+
+
+def test_the_wire_keys_default_to_srgb8_in_shared_memory_and_survive_rig_toml():
+    assert parse_rig(doc()).wire == WireSpec("srgb8", True)
+    d = doc()
+    d["compositor"].update(wire="half", shared_memory=False)
+    rig = parse_rig(d)
+    assert rig.wire == WireSpec("half", False)
+    assert parse_rig(tomllib.loads(rig_toml(rig))).wire == rig.wire
+    assert "wire" not in rig_toml(parse_rig(doc()))  # defaults are left out
