@@ -35,7 +35,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "never holds the rig up: a frame due while the writer is behind is left out and "
                              "counted (frames_not_recorded in report.json)")
     parser.add_argument("--exr-every", type=every, default=30,
-                        help="also write a linear half-float EXR every N frames (default 30; 0: never)")
+                        help="also write a linear half-float EXR every N frames (default 30; 0: never); from srgb8 "
+                             "channels it holds their 8-bit levels decoded to linear (quantised: --wire half on "
+                             "the workers for accurate EXRs)")
     parser.add_argument("--pending-timeout", type=positive, default=None,
                         help="a frame still missing images this many seconds after it was published is "
                              "finalised as incomplete (default: the rig file's sync.pending_timeout_s, 10 unless "
