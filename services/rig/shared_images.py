@@ -247,10 +247,9 @@ class SharedImageReader:
             if opened is not None and opened.name == segment:
                 return opened
             fresh = self._open_segment(segment)
-            # The channel's worker came back with a new segment: let go of the old one (a dead
-            # worker's segment is freed once unlinked and unmapped).
-            if opened is not None:
-                _unmap(opened)
+            # The channel's worker came back with a new segment: let go of the old one. Its
+            # mapping goes with the last reference (a copy still running on another thread
+            # keeps it until done), and a dead worker's segment is freed once it is unlinked.
             self._open[channel] = fresh
             return fresh
 
@@ -276,14 +275,6 @@ class SharedImageReader:
         return _Opened(segment, mapped, np.frombuffer(mapped, np.uint8), slots, capacity)
 
     def close(self) -> None:
-        """Let go of every segment."""
+        """Let go of every segment (each unmapped with its last reference)."""
         with self._lock:
-            for opened in self._open.values():
-                _unmap(opened)
             self._open.clear()
-
-
-def _unmap(opened: _Opened) -> None:
-    del opened.buffer
-    with contextlib.suppress(BufferError):  # an image still viewing it: the mapping goes with it
-        opened.map.close()
