@@ -59,6 +59,7 @@ bench: $(STAMP)
 	$(PY) bench/bench_frame.py
 	$(PY) bench/bench_cigi_queries.py
 	$(PY) bench/bench_cigi.py
+	$(PY) bench/bench_wire.py
 	$(VENV)/bin/ig latency --out bench/results/latency.json
 
 # Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.

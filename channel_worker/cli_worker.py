@@ -11,8 +11,10 @@ from services.rig.cli_common import (
     EXIT_FAILED,
     EXIT_OK,
     add_rig_arguments,
+    add_wire_arguments,
     error,
     load_rig_or_report,
+    wire_of,
 )
 from services.rig.options import add_render_arguments, from_arguments
 
@@ -30,6 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scene", default=None,
                         help="scene JSON (docs/scene-format.md); default: the bundled airfield")
     add_render_arguments(parser)
+    add_wire_arguments(parser, compositor=False)
     parser.add_argument("--once", action="store_true",
                         help="exit when the host's run ends (default: wait for the next run)")
 
@@ -72,6 +75,7 @@ def run(args: argparse.Namespace) -> int:
         # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
         database = load_scene(args.scene or bundled_scene_path())
         security = security_of(rig)
+        wire = wire_of(args, rig)
     except (RigError, SceneError, ValueError) as exc:
         error("worker", exc)
         return EXIT_BAD_INPUT
@@ -81,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         worker = ChannelWorker(database, channel.spec, host_address=rig.host_address,
                                compositor_address=rig.compositor_address, options=options, once=args.once,
-                               security=security, cigi=rig.cigi.configured)
+                               security=security, cigi=rig.cigi.configured, wire=wire)
         serve_worker(worker, bind_address(channel.address, args.bind), stop, security=security)
     except OSError as exc:
         error("worker", exc)

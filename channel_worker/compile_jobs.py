@@ -206,11 +206,11 @@ def run_group(group: str, request: CompileRequest) -> None:
 
     database = hosted(load_scene(request.scene), request)
     if group == "polygons":
-        from .worker import encode_rgb_f16
+        from .submit import warm_encoders
 
         bare = dataclasses.replace(database, terrain=None, haze=None, fog=None, clouds=None)
-        image = render_frame(bare, request.channel, EYEPOINT, request.options)
-        encode_rgb_f16(image.rgb)  # the worker's encoder for the compositor, compiled here too
+        render_frame(bare, request.channel, EYEPOINT, request.options)
+        warm_encoders()  # the worker's encoders for the compositor, compiled here too
         if request.cigi:
             from .query.service import warm_queries
 
@@ -250,13 +250,13 @@ def _check_frame(request: CompileRequest, database: Database,
     query of each kind), in this process; returns the kernels it compiled."""
     from .pipeline.render import render_frame
     from .query.service import warm_queries
-    from .worker import encode_rgb_f16
+    from .submit import warm_encoders
 
     on_progress(Progress(CHECK, "group-start"))
     t0 = time.perf_counter()
     with kernel_events(CHECK, on_progress) as compiled:
-        image = render_frame(database, request.channel, EYEPOINT, request.options)
-        encode_rgb_f16(image.rgb)
+        render_frame(database, request.channel, EYEPOINT, request.options)
+        warm_encoders()
         if request.cigi:
             render_frame(hosted(database, request), request.channel, EYEPOINT, request.options)
             warm_queries(database)

@@ -16,11 +16,9 @@ import logging
 import threading
 import time
 from dataclasses import asdict, dataclass
-from typing import Any, NamedTuple
 
 import grpc
 import numpy as np
-from numba import njit
 
 from ig.v1 import (
     compositor_pb2,
@@ -49,6 +47,7 @@ from services.rig.grpc_util import (
 from services.rig.memory import keep_freed_memory
 from services.rig.options import RenderOptions
 from services.rig.report import FrameReport
+from services.rig.rigfile import WireSpec
 from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_proto
 
 from .pipeline.kernel_cache import serialise_cache_writes
@@ -56,6 +55,7 @@ from .pipeline.render import render_frame
 from .pipeline.scene.database import Database
 from .pipeline.scene.environment import WARM_UP_ENVIRONMENT, EnvironmentCache
 from .query.service import add_query_service, warm_queries
+from .submit import ImageSender, SubmitStub, warm_encoders
 
 log = logging.getLogger("ig.worker")
 SERVICE = "ig.v1.ChannelWorkerService"
@@ -95,102 +95,6 @@ class StreamEnd(enum.Enum):
     REFUSED = "refused"  # the host refused the channel name: the rig files disagree
     LOST = "lost"  # the host is gone, the deadline passed, or the channel is still taken
     STOPPED = "stopped"  # this worker is shutting down
-
-
-def encode_rgb_f16(rgb: np.ndarray) -> bytes:
-    """PIXEL_FORMAT_RGB_F16: linear RGB (H, W, 3) as little-endian half floats, top row first."""
-    out = np.empty(rgb.shape, "<f2")
-    to_half(rgb, out)
-    return out.tobytes()
-
-
-def to_half(rgb: np.ndarray, out: np.ndarray) -> None:
-    """Round float RGB to IEEE half floats into out (same shape, "<f2"): bit for bit what
-    numpy's astype gives, in a quarter of the time for float32 (1.8 ms instead of 7 for a
-    1024 x 768 channel, on the critical path of every frame).
-
-    Raises:
-        ValueError: out is not a C-contiguous little-endian half-float array of rgb's shape.
-    """
-    if out.shape != rgb.shape or out.dtype != np.dtype("<f2") or not out.flags.c_contiguous:
-        raise ValueError(f"out: {out.dtype} {out.shape} is not a contiguous <f2 array of shape {rgb.shape}")
-    if rgb.dtype == np.float32 and rgb.flags.c_contiguous and np.little_endian:
-        _half_bits(rgb.reshape(-1).view(np.uint32), out.reshape(-1).view(np.uint16))
-    else:
-        np.copyto(out, rgb, casting="unsafe")
-
-
-@njit(cache=True, nogil=True)
-def _half_bits(src, dst):
-    """IEEE float32 bits -> float16 bits, rounding to nearest even, as numpy does (numba has no
-    float16 type, hence the bits; the branches are the cases of the half format)."""
-    for i in range(src.size):
-        u = src[i]
-        sign = (u >> np.uint32(16)) & np.uint32(0x8000)
-        a = u & np.uint32(0x7FFFFFFF)  # magnitude
-        if a >= np.uint32(0x47800000):  # >= 65536 (or inf, NaN): inf, or a quiet NaN
-            h = np.uint32(0x7E00) if a > np.uint32(0x7F800000) else np.uint32(0x7C00)
-        elif a >= np.uint32(0x38800000):  # >= 2^-14: a normal half (65520 and up round to inf)
-            # Re-bias the exponent (127 -> 15) and round the 23-bit mantissa to 10 bits: adding
-            # 0xFFF plus the lowest kept bit before the shift rounds half to even.
-            h = (a + np.uint32(0xC8000FFF) + ((a >> np.uint32(13)) & np.uint32(1))) >> np.uint32(13)
-        elif a >= np.uint32(0x33000000):  # >= 2^-25: a subnormal half, units of 2^-24
-            shift = np.uint32(126) - (a >> np.uint32(23))
-            mantissa = (a & np.uint32(0x7FFFFF)) | np.uint32(0x800000)
-            h = mantissa >> shift
-            rest = mantissa & ((np.uint32(1) << shift) - np.uint32(1))
-            half = np.uint32(1) << (shift - np.uint32(1))
-            if rest > half or (rest == half and (h & np.uint32(1))):
-                h += np.uint32(1)
-        else:  # rounds to zero
-            h = np.uint32(0)
-        dst[i] = np.uint16(h | sign)
-
-
-class ImageSubmission(NamedTuple):
-    """A SubmitChannelImageRequest whose pixels stay in the worker's buffer until the request is
-    serialised (SubmitStub): its fields read as the request's.
-
-    Attributes:
-        head: every field of the request but pixels.
-        pixels: the image as PIXEL_FORMAT_RGB_F16 bytes (a view of the worker's buffer, valid
-            until the next frame is encoded).
-    """
-
-    head: compositor_pb2.SubmitChannelImageRequest
-    pixels: memoryview
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.head, name)
-
-
-#: The wire tag of SubmitChannelImageRequest.pixels: its field number, length-delimited.
-_PIXELS_TAG = bytes([compositor_pb2.SubmitChannelImageRequest.DESCRIPTOR.fields_by_name["pixels"].number << 3 | 2])
-
-
-def serialize_submission(submission: ImageSubmission) -> bytes:
-    """The wire form of the request with its pixels: the other fields serialised by protobuf, the
-    pixels field appended after them (a protobuf parser takes fields in any order).
-
-    The pixels are copied once, into the message: building the request with them would copy
-    them into a bytes object, into the message, and again when gRPC serialises it.
-    """
-    size, length = submission.pixels.nbytes, bytearray()
-    while size >= 0x80:
-        length.append(size & 0x7F | 0x80)
-        size >>= 7
-    length.append(size)
-    return b"".join((submission.head.SerializeToString(), _PIXELS_TAG, length, submission.pixels))
-
-
-class SubmitStub:
-    """CompositorService.SubmitChannelImage taking an ImageSubmission (serialize_submission)."""
-
-    def __init__(self, channel: grpc.Channel) -> None:
-        method = compositor_pb2.DESCRIPTOR.services_by_name["CompositorService"].methods_by_name["SubmitChannelImage"]
-        self.SubmitChannelImage = channel.unary_unary(
-            f"/{method.containing_service.full_name}/{method.name}", request_serializer=serialize_submission,
-            response_deserializer=compositor_pb2.SubmitChannelImageResponse.FromString)
 
 
 class LatestFrame:
@@ -249,11 +153,14 @@ class ChannelWorker:
         cigi: the rig follows a CIGI host: the warm-up renders under a host's weather too
             (environment.WARM_UP_ENVIRONMENT) and prepares the query kernels; otherwise the
             first weather or query, if any, loads their kernels then.
+        wire: the images' format to the compositor, and whether shared memory may carry them
+            (the rig file's [compositor] wire and shared_memory; submit.ImageSender).
     """
 
     def __init__(self, database: Database, channel: ChannelSpec, *, host_address: str,
                  compositor_address: str, options: RenderOptions | None = None,
-                 once: bool = False, security: Security | None = None, cigi: bool = False) -> None:
+                 once: bool = False, security: Security | None = None, cigi: bool = False,
+                 wire: WireSpec | None = None) -> None:
         self.database = database
         self.cigi = cigi
         self.channel = channel
@@ -262,11 +169,11 @@ class ChannelWorker:
         self.last_report = FrameReport()
         #: True once a warm-up frame has rendered (kernels compiled or loaded from the cache).
         self.ready = False
-        # One colour array and one half-float array for every frame: the image is encoded and
-        # sent to the compositor before the next frame is rendered, and reusing them spares
-        # faulting in fresh pages each frame.
+        # One colour array for every frame (and the sender's one wire buffer or ring): the image
+        # is encoded and sent to the compositor before the next frame is rendered, and reusing
+        # them spares faulting in fresh pages each frame.
         self._rgb = np.empty((channel.height, channel.width, 3), np.float32)
-        self._half = np.empty((channel.height, channel.width, 3), "<f2")
+        self.sender = ImageSender(channel, compositor_address=compositor_address, wire=wire)
         self.once = once
         self.counters = WorkerCounters()
         #: Why the host refused this worker (its channel is not in the host's rig), else "".
@@ -293,8 +200,8 @@ class ChannelWorker:
         keep_freed_memory()
         tiny = ChannelSpec("warm-up", 8, 6, self.channel.left_deg, self.channel.right_deg,
                            self.channel.bottom_deg, self.channel.top_deg)
-        image = render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
-        encode_rgb_f16(image.rgb)  # compiles (or loads) the encoder too
+        render_frame(self.database, tiny, Eyepoint.of(0, 0, 10, 0, 0, 0), self.options)
+        warm_encoders()  # compiles (or loads) the encoders too
         if self.cigi:
             # The host's first weather and first queries must not wait for a compiler.
             render_frame(self._environments.get(self.database, WARM_UP_ENVIRONMENT), tiny,
@@ -338,6 +245,7 @@ class ChannelWorker:
         finally:
             self._host.close()
             self._compositor.close()
+            self.sender.close()
 
     def _cancel_stream(self) -> None:
         with self._lock:
@@ -442,20 +350,15 @@ class ChannelWorker:
             return
         render_time = time.perf_counter() - t0
         render_end = time.time()
-        # The wire format is half floats: rounded into the worker's own buffer, which the
-        # request's serialiser copies once, into the message (ImageSubmission).
-        to_half(image.rgb, self._half)
-        request = ImageSubmission(compositor_pb2.SubmitChannelImageRequest(
+        head = compositor_pb2.SubmitChannelImageRequest(
             frame_number=number, channel_name=self.channel.name, width=self.channel.width,
-            height=self.channel.height, pixel_format=compositor_pb2.PIXEL_FORMAT_RGB_F16,
-            eyepoint=frame.eyepoint, render_time_s=render_time,
+            height=self.channel.height, eyepoint=frame.eyepoint, render_time_s=render_time,
             control_sample_time_unix_s=frame.control_sample_time_unix_s,
             frames_skipped=skipped, run_id=frame.run_id, frame_received_unix_s=received,
-            render_start_unix_s=render_start, render_end_unix_s=render_end, submit_unix_s=time.time()),
-            self._half.data.cast("B"))
+            render_start_unix_s=render_start, render_end_unix_s=render_end)
         ok, error = True, ""
         try:
-            self.compositor_stub.SubmitChannelImage(request, timeout=RPC_DEADLINE_S)
+            self.sender.submit(self.compositor_stub, head, image.rgb)
             with self._lock:
                 self.counters.frames_rendered += 1
         except grpc.RpcError as exc:

@@ -253,10 +253,19 @@ def format_report(doc: dict) -> str:
              ("write errors", doc["write_errors"])]
     rate = doc.get("composite_rate_hz")
     rows.append(("composites per second (median)", f"{rate:.2f}" if rate else "-"))
+    wire = doc.get("wire") or {}
+    for c, n in wire.get("channels", {}).items():
+        formats = ", ".join(f"{n[k]} {k}" for k in ("srgb8", "half") if n[k]) or "none"
+        rows.append((f"wire {c}", f"{formats}; {n['shared_memory']} in shared memory, {n['inline']} inline; "
+                                  f"{n['bytes_per_image'] / 1e6:.2f} MB an image"))
     figures = [(f"render {c}", p) for c, p in doc["render_time"].items()]
     figures.append(("control-to-composite latency", doc["control_to_composite_latency"]))
     chain = doc.get("latency_chain") or {}
     figures += [(f"  {key}", chain[key]) for key, _ in HOPS if key in chain]
+    if wire.get("render_end_to_compositor_receive"):
+        figures += [("worker -> compositor, every image", wire["render_end_to_compositor_receive"]),
+                    ("  encode (render end -> submit)", wire["encode"]),
+                    ("  transfer (submit -> received)", wire["transfer"])]
     width = max(len(r[0]) for r in rows + figures)
     lines = [f"  {k:<{width}}  {v}" for k, v in rows]
     lines.append("")

@@ -12,10 +12,12 @@ from services.rig.cli_common import (
     EXIT_FAILED,
     EXIT_OK,
     add_rig_arguments,
+    add_wire_arguments,
     error,
     load_rig_or_report,
     non_negative,
     positive,
+    wire_of,
 )
 
 log = logging.getLogger("ig.compositor")
@@ -33,11 +35,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "never holds the rig up: a frame due while the writer is behind is left out and "
                              "counted (frames_not_recorded in report.json)")
     parser.add_argument("--exr-every", type=every, default=30,
-                        help="also write a linear half-float EXR every N frames (default 30; 0: never)")
+                        help="also write a linear half-float EXR every N frames (default 30; 0: never); from srgb8 "
+                             "channels it holds their 8-bit levels decoded to linear (quantised: --wire half on "
+                             "the workers for accurate EXRs)")
     parser.add_argument("--pending-timeout", type=positive, default=None,
                         help="a frame still missing images this many seconds after it was published is "
                              "finalised as incomplete (default: the rig file's sync.pending_timeout_s, 10 unless "
                              "set; keep it above the host's swap-barrier timeout)")
+    add_wire_arguments(parser, compositor=True)
     parser.add_argument("--once", action="store_true",
                         help="finish, write the run's report.json and exit when the host's run ends (default: "
                              "follow run after run until SIGTERM)")
@@ -100,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
                             sizes={s.name: (s.width, s.height) for s in specs},
                             max_pending_frames=rig.sync.max_pending_frames,
                             max_pending_bytes=int(rig.sync.max_pending_mib * 2**20),
-                            plan=plan if plan.blends else None, seams=seams)
+                            plan=plan if plan.blends else None, seams=seams, wire=wire_of(args, rig))
     stop = threading.Event()
     stop_on_signals(stop)
     # The largest message: the largest channel image (half-float RGB) and the request's fields.

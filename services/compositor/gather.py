@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ig.v1 import compositor_pb2, frame_pb2
+from services.rig.shared_images import SharedImageError, SharedImageReader
 
 # Causes of an incomplete frame.
 MISSING_CHANNEL = "missing_channel"
@@ -31,6 +32,12 @@ DUPLICATE = "duplicate_image"
 OTHER_RUN = "other_run"
 WRONG_SIZE = "wrong_size"
 UNPUBLISHED = "unpublished_frame"
+SHARED_UNAVAILABLE = "shared_memory_unavailable"  # the worker's segment cannot be opened here
+STALE_SHARED = "stale_shared_image"  # the segment's slot no longer (or never) held the image
+
+#: The pixel formats taken: their wire name and numpy type (services/rig/rigfile.WIRE_FORMATS).
+PIXEL_FORMATS: dict[int, tuple[str, np.dtype]] = {compositor_pb2.PIXEL_FORMAT_RGB_SRGB8: ("srgb8", np.dtype(np.uint8)),
+                 compositor_pb2.PIXEL_FORMAT_RGB_F16: ("half", np.dtype("<f2"))}
 
 #: Frames beyond the last one seen published whose images are taken and held: a worker's image
 #: can overtake the compositor's own copy of the frame from the host by a few milliseconds.
@@ -40,6 +47,8 @@ LOOKAHEAD_FRAMES = 4
 DECIDED_MEMORY = 1024
 #: Samples kept of each per-frame figure (18 minutes at 60 Hz, 6 hours at the demo's 3 Hz).
 MAX_SAMPLES = 65536
+#: The parts of the worker -> compositor hop in the report's "wire" figures.
+WIRE_HOPS = ("render_end_to_compositor_receive", "encode", "transfer")
 
 _COMPLETE = "complete"
 _EYE_FIELDS = ("x", "y", "z", "heading_deg", "pitch_deg", "roll_deg")
@@ -65,8 +74,9 @@ class ChannelTiming:
         frame_received: the worker received the frame from the host.
         render_start: the worker started rendering it.
         render_end: the worker finished rendering it.
-        submit: the worker handed the encoded image to gRPC.
-        compositor_receive: the compositor received the image.
+        submit: the worker handed the encoded image to gRPC (its encoding done).
+        compositor_receive: the compositor had the image's pixels (read out of the message, or
+            copied out of the worker's shared memory).
     """
 
     frame_received: float = 0.0
@@ -82,12 +92,15 @@ class ChannelImage:
 
     Attributes:
         channel: rig channel name.
-        rgb: (H, W, 3) float16 linear RGB, top row first (a read-only view of the received bytes).
+        rgb: (H, W, 3), top row first, as the wire carried it: float16 linear RGB or uint8
+            sRGB-encoded RGB (a read-only view of the received bytes, or a copy out of the
+            worker's shared memory).
         eyepoint: the eyepoint the channel rendered: x, y, z metres, heading, pitch, roll degrees.
         render_time_s: seconds the channel spent rendering.
         control_sample_time: UNIX seconds of the control sample the frame was computed from.
         frames_skipped: the worker's skipped-frame counter when it submitted.
         timing: the image's time stamps on its way to the compositor.
+        shared: the pixels came through shared memory.
     """
 
     channel: str
@@ -97,6 +110,12 @@ class ChannelImage:
     control_sample_time: float
     frames_skipped: int
     timing: ChannelTiming = ChannelTiming()
+    shared: bool = False
+
+    @property
+    def wire(self) -> str:
+        """The image's wire format: "srgb8" or "half"."""
+        return "srgb8" if self.rgb.dtype == np.uint8 else "half"
 
 
 @dataclass(frozen=True)
@@ -175,12 +194,15 @@ class FrameGatherer:
         max_pending_frames: frames held open at once.
         max_pending_bytes: pixels the open frames may hold.
         run_id: the run the gatherer collects, "" until the first published frame names it.
+        shared: reads images out of the workers' shared memory; None: such images are refused
+            as unavailable (the workers then send them inline).
     """
 
     def __init__(self, channels: Sequence[str], on_complete: Callable[[CompleteFrame], None], *,
                  pending_timeout_s: float = 30.0, monotonic: Callable[[], float] = time.monotonic,
                  clock: Callable[[], float] = time.time, sizes: Mapping[str, tuple[int, int]] | None = None,
-                 max_pending_frames: int = 16, max_pending_bytes: int = 512 * 2**20, run_id: str = "") -> None:
+                 max_pending_frames: int = 16, max_pending_bytes: int = 512 * 2**20, run_id: str = "",
+                 shared: SharedImageReader | None = None) -> None:
         if max_pending_frames < 1 or max_pending_bytes < 1:
             raise ValueError(f"max_pending_frames {max_pending_frames}, max_pending_bytes {max_pending_bytes}: "
                              f"both must be >= 1")
@@ -214,6 +236,13 @@ class FrameGatherer:
         self.last_incomplete = ""
         self.render_times: dict[str, deque[float]] = {c: deque(maxlen=MAX_SAMPLES) for c in self.channels}
         self.skipped: dict[str, int] = dict.fromkeys(self.channels, 0)
+        self.shared = shared
+        # The worker -> compositor hop of every image taken (docs/latency.md): render end to
+        # received, and its parts, the worker's encoding (render end to submit) and the transfer
+        # (submit to received); what each channel sent.
+        self.wire_hops: dict[str, deque[float]] = {k: deque(maxlen=MAX_SAMPLES) for k in WIRE_HOPS}
+        self.wire_images: dict[str, Counter[str]] = {c: Counter() for c in self.channels}
+        self.wire_bytes: dict[str, int] = dict.fromkeys(self.channels, 0)
 
     # --- inputs -----------------------------------------------------------------------------
     def on_published(self, frame: frame_pb2.Frame) -> None:
@@ -271,9 +300,8 @@ class FrameGatherer:
                 beyond the last published (LOOKAHEAD_FRAMES), a second image for the same
                 channel and frame. The frame is not touched; the rejection is counted by cause.
         """
-        received = self.clock()
         try:
-            image = self._validate(request, received)
+            image = self._validate(request)
             with self._lock:
                 number = request.frame_number
                 refusal = self._admission(request.run_id, number)
@@ -283,8 +311,9 @@ class FrameGatherer:
                 if entry is not None and image.channel in entry.images:
                     raise InvalidSubmission(DUPLICATE, f"channel_name: {image.channel!r} already delivered "
                                                        f"frame_number {number}")
-                # A late image was still rendered: its time and the worker's counter are real.
+                # A late image was still rendered and sent: its times and the worker's counter are real.
                 self.render_times[image.channel].append(image.render_time_s)
+                self._count_wire(image)
                 self.skipped[image.channel] = max(self.skipped[image.channel], image.frames_skipped)
                 if entry is None:
                     self.late_images += 1
@@ -357,7 +386,7 @@ class FrameGatherer:
                                                   f"open; the bounds are {self.max_pending_frames} frames, "
                                                   f"{self.max_pending_bytes / 2**20:.0f} MiB")
 
-    def _validate(self, r: compositor_pb2.SubmitChannelImageRequest, received: float) -> ChannelImage:
+    def _validate(self, r: compositor_pb2.SubmitChannelImageRequest) -> ChannelImage:
         if r.channel_name not in self.channels:
             raise InvalidSubmission(UNKNOWN_CHANNEL, f"channel_name: {r.channel_name[:64]!r} is not a channel of "
                                                      f"the rig ({', '.join(self.channels)})")
@@ -367,26 +396,61 @@ class FrameGatherer:
             value = getattr(r.eyepoint, name)
             if not math.isfinite(value):
                 raise InvalidSubmission(BAD_EYEPOINT, f"eyepoint.{name}: {value} is not finite")
-        if r.pixel_format != compositor_pb2.PIXEL_FORMAT_RGB_F16:
+        if r.pixel_format not in PIXEL_FORMATS:
             name = compositor_pb2.PixelFormat.Name(r.pixel_format) if r.pixel_format in \
                 compositor_pb2.PixelFormat.values() else str(r.pixel_format)
-            raise InvalidSubmission(BAD_PIXELS, f"pixel_format: {name} is not PIXEL_FORMAT_RGB_F16")
+            raise InvalidSubmission(BAD_PIXELS, f"pixel_format: {name} is not PIXEL_FORMAT_RGB_SRGB8 or "
+                                                f"PIXEL_FORMAT_RGB_F16")
         if self.sizes is not None and (r.width, r.height) != self.sizes[r.channel_name]:
             w, h = self.sizes[r.channel_name]
             raise InvalidSubmission(WRONG_SIZE, f"width x height: {r.width} x {r.height} is not channel "
                                                 f"{r.channel_name!r}'s {w} x {h} (rig file)")
-        expected = r.width * r.height * 3 * 2
-        # Each read of a bytes field hands out a fresh copy of it: read the pixels once, and keep
-        # them as a view of that copy (the stitch is the only other copy the compositor makes).
-        pixels = r.pixels
-        if r.width == 0 or r.height == 0 or len(pixels) != expected:
-            raise InvalidSubmission(BAD_PIXELS, f"pixels: {len(pixels)} bytes, expected {expected} for "
-                                                f"{r.width} x {r.height} RGB half floats")
-        rgb = np.frombuffer(pixels, dtype="<f2").reshape(r.height, r.width, 3)
+        wire, dtype = PIXEL_FORMATS[r.pixel_format]
+        if r.width == 0 or r.height == 0:
+            raise InvalidSubmission(BAD_PIXELS, f"width x height: {r.width} x {r.height} has no pixels")
+        shape = (r.height, r.width, 3)
+        if r.HasField("shared"):
+            rgb = self._read_shared(r, shape, dtype)
+        else:
+            expected = r.width * r.height * 3 * dtype.itemsize
+            # Each read of a bytes field hands out a fresh copy of it: read the pixels once, and
+            # keep them as a view of that copy (the stitch is the only other copy the compositor
+            # makes).
+            pixels = r.pixels
+            if len(pixels) != expected:
+                raise InvalidSubmission(BAD_PIXELS, f"pixels: {len(pixels)} bytes, expected {expected} for "
+                                                    f"{r.width} x {r.height} RGB {wire}")
+            rgb = np.frombuffer(pixels, dtype=dtype).reshape(shape)
         timing = ChannelTiming(r.frame_received_unix_s, r.render_start_unix_s, r.render_end_unix_s,
-                               r.submit_unix_s, received)
+                               r.submit_unix_s, self.clock())
         return ChannelImage(r.channel_name, rgb, eyepoint_tuple(r.eyepoint), r.render_time_s,
-                            r.control_sample_time_unix_s, r.frames_skipped, timing)
+                            r.control_sample_time_unix_s, r.frames_skipped, timing, r.HasField("shared"))
+
+    def _read_shared(self, r: compositor_pb2.SubmitChannelImageRequest, shape: tuple[int, int, int],
+                     dtype: np.dtype) -> np.ndarray:
+        """The pixels of a shared-memory image, copied out of the worker's slot."""
+        if r.pixels:
+            raise InvalidSubmission(BAD_PIXELS, f"pixels: {len(r.pixels)} bytes as well as shared "
+                                                f"{r.shared.segment!r}: one or the other")
+        if self.shared is None:
+            raise InvalidSubmission(SHARED_UNAVAILABLE, f"shared.segment: {r.shared.segment[:80]!r}: this "
+                                                        f"compositor takes no shared memory; send the pixels inline")
+        try:
+            return self.shared.read(r.channel_name, r.shared.segment, r.shared.slot, r.shared.sequence, shape, dtype)
+        except SharedImageError as exc:
+            raise InvalidSubmission(SHARED_UNAVAILABLE if exc.unavailable else STALE_SHARED, str(exc)) from None
+
+    def _count_wire(self, image: ChannelImage) -> None:
+        """The image's format, way and size, and its hop's parts (lock held)."""
+        counts = self.wire_images[image.channel]
+        counts[image.wire] += 1
+        counts["shared_memory" if image.shared else "inline"] += 1
+        self.wire_bytes[image.channel] = image.rgb.nbytes
+        t = image.timing
+        if t.render_end and t.submit:
+            for key, seconds in zip(WIRE_HOPS, (t.compositor_receive - t.render_end, t.submit - t.render_end,
+                                                t.compositor_receive - t.submit), strict=True):
+                self.wire_hops[key].append(seconds)
 
     def _settle(self, number: int) -> list[CompleteFrame]:
         """Decide frame number if it can be decided now (lock held)."""
@@ -471,4 +535,14 @@ class FrameGatherer:
                 "last_rejection": self.last_rejection,
                 "render_time": {c: percentiles(v) for c, v in self.render_times.items()},
                 "frames_skipped": dict(self.skipped),
+                "wire": self._wire_report(),
             }
+
+    def _wire_report(self) -> dict:
+        """What the workers sent and how long it took (lock held): per channel the images by
+        format and way (srgb8, half; shared_memory, inline) and the bytes of the last image's
+        pixels; the hop render end -> received over every image, and its parts."""
+        channels = {c: {"srgb8": n["srgb8"], "half": n["half"], "shared_memory": n["shared_memory"],
+                        "inline": n["inline"], "bytes_per_image": self.wire_bytes[c]}
+                    for c, n in self.wire_images.items()}
+        return {"channels": channels, **{k: percentiles(v) for k, v in self.wire_hops.items()}}

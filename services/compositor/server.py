@@ -9,6 +9,7 @@ import os
 import re
 import threading
 import time
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,9 +30,18 @@ from services.rig.grpc_util import (
     make_server,
     set_not_serving,
 )
+from services.rig.rigfile import WireSpec
+from services.rig.shared_images import SharedImageReader, shared_memory_supported
 
 from .blend import BlendPlan
-from .gather import OTHER_RUN, UNPUBLISHED, CompleteFrame, FrameGatherer, InvalidSubmission
+from .gather import (
+    OTHER_RUN,
+    SHARED_UNAVAILABLE,
+    UNPUBLISHED,
+    CompleteFrame,
+    FrameGatherer,
+    InvalidSubmission,
+)
 from .stitch import FrameRecorder, RecorderCounts, compose
 from .timing import TimingStats
 from .watch import Watchers, summary
@@ -67,6 +77,7 @@ class _Run:
     recorder: FrameRecorder | None = None
     directory: Path | None = None
     stitch_errors: int = 0
+    stitched: Counter[str] = field(default_factory=Counter)  # composites by format
     host_status: dict = field(default_factory=dict)
     ended: bool = False
 
@@ -97,18 +108,23 @@ class Compositor:
         max_pending_bytes: pixels the open frames may hold.
         plan: edge blending of the stitch (None: channels side by side).
         seams: the seam check of the rig (BlendPlan.report()), for the report.
+        wire: the rig's wire format (what a frame whose channels sent different formats is
+            stitched in) and whether images may come through the workers' shared memory.
     """
 
     def __init__(self, channels: Sequence[str], out_dir: Path, *, record_every: int = 1, exr_every: int = 30,
                  pending_timeout_s: float = 30.0, sizes: Mapping[str, tuple[int, int]] | None = None,
                  max_pending_frames: int = 16, max_pending_bytes: int = 512 * 2**20,
-                 plan: BlendPlan | None = None, seams: dict | None = None) -> None:
+                 plan: BlendPlan | None = None, seams: dict | None = None, wire: WireSpec | None = None) -> None:
         self.out_dir = Path(out_dir)
         self.channels = tuple(channels)
         self.record_every = record_every
         self.exr_every = exr_every
         self.plan = plan
         self.seams = seams or {}
+        self.wire = wire or WireSpec()
+        # One reader for every run: a worker's segment outlives the host's runs.
+        self.shared = SharedImageReader() if self.wire.shared_memory and shared_memory_supported() else None
         self._pending_timeout_s = pending_timeout_s
         self._sizes = sizes
         self._max_pending = (max_pending_frames, max_pending_bytes)
@@ -136,7 +152,8 @@ class Compositor:
         """A run's state; its directory is opened now if the run is named."""
         gatherer = FrameGatherer(self.channels, lambda f: None, run_id=run_id,
                                  pending_timeout_s=self._pending_timeout_s, sizes=self._sizes,
-                                 max_pending_frames=self._max_pending[0], max_pending_bytes=self._max_pending[1])
+                                 max_pending_frames=self._max_pending[0], max_pending_bytes=self._max_pending[1],
+                                 shared=self.shared)
         run = _Run(run_id, gatherer, TimingStats())
         run.gatherer.on_complete = lambda frame: self._on_complete(run, frame)
         if run_id:
@@ -224,8 +241,8 @@ class Compositor:
                                 "frames_complete": doc["frames_complete"],
                                 "frames_incomplete": doc["frames_incomplete"]})
             del self._ended[:-RUNS_LISTED]
-        log.info("run %s over: %d complete, incomplete %s", run.run_id, doc["frames_complete"],
-                 doc["frames_incomplete"])
+        log.info("run %s over: %d complete, incomplete %s; %s", run.run_id, doc["frames_complete"],
+                 doc["frames_incomplete"], wire_summary(doc["wire"]))
         return doc
 
     def refuse(self, cause: str, message: str) -> None:
@@ -236,12 +253,14 @@ class Compositor:
     # --- frames -------------------------------------------------------------------------------
     def _on_complete(self, run: _Run, frame: CompleteFrame) -> None:
         try:
-            composite = compose(frame, self.plan)
+            composite = compose(frame, self.plan, prefer=self.wire.format)
         except ValueError as exc:
             with self._lock:
                 run.stitch_errors += 1
             log.error("frame %d not stitched: %s", frame.frame_number, exc)
             return
+        with self._lock:
+            run.stitched["srgb8" if composite.rgb.dtype.itemsize == 1 else "half"] += 1
         run.timing.add(composite)
         if run.recorder is not None:
             run.recorder.offer(composite)
@@ -254,6 +273,9 @@ class Compositor:
         counts = run.recorder.snapshot() if run.recorder is not None else RecorderCounts()
         with self._lock:
             doc["stitch_errors"] = run.stitch_errors
+            # The format a frame of mixed formats is stitched in, and what the composites were.
+            doc["wire"].update(format=self.wire.format, shared_memory=self.shared is not None,
+                               composites=dict(run.stitched))
             doc["run_over"] = run.ended
             doc["runs_before"] = list(self._ended)
         doc["record_every"] = self.record_every
@@ -290,10 +312,22 @@ class Compositor:
             self._end(run, grace_s)
         self.watchers.close()
         self.finished.set()
+        if self.shared is not None:
+            self.shared.close()
         doc = self._report(run)
         if run.directory is not None:
             _write_json(run.directory / "report.json", doc)
         return doc
+
+
+def wire_summary(wire: dict) -> str:
+    """One line of what fed the compositor: images by format and by way, summed over the
+    channels ("wire: 300 srgb8 (300 in shared memory), 0 half")."""
+    total = Counter[str]()
+    for counts in wire["channels"].values():
+        total.update({k: v for k, v in counts.items() if k != "bytes_per_image"})
+    return (f"wire: {total['srgb8']} srgb8, {total['half']} half images ({total['shared_memory']} in shared memory, "
+            f"{total['inline']} inline)")
 
 
 def _write_json(path: Path, doc: dict) -> None:
@@ -346,7 +380,9 @@ class CompositorServicer(compositor_pb2_grpc.CompositorServiceServicer):
 
 
 #: Status of a refused submission by cause; INVALID_ARGUMENT for the others.
-_STATUS = {OTHER_RUN: grpc.StatusCode.FAILED_PRECONDITION, UNPUBLISHED: grpc.StatusCode.OUT_OF_RANGE}
+#: SHARED_UNAVAILABLE tells the worker to send inline (compositor.proto, SubmitChannelImageRequest.shared).
+_STATUS = {OTHER_RUN: grpc.StatusCode.FAILED_PRECONDITION, UNPUBLISHED: grpc.StatusCode.OUT_OF_RANGE,
+           SHARED_UNAVAILABLE: grpc.StatusCode.FAILED_PRECONDITION}
 
 
 def observe_host(compositor: Compositor, host_address: str, stop: threading.Event, *, once: bool = False,
@@ -455,7 +491,8 @@ def serve(compositor: Compositor, address: str, host_address: str, stop: threadi
     health = add_health(server, [SERVICE], refused=compositor.refuse)
     bind(server, address, security)
     server.start()
-    log.info("compositor listening on %s, writing to %s", address, compositor.out_dir)
+    log.info("compositor listening on %s, writing to %s; wire %s, shared memory %s", address, compositor.out_dir,
+             compositor.wire.format, "taken" if compositor.shared is not None else "refused (images inline)")
     observer_done = threading.Event()
 
     def follow() -> None:
@@ -472,6 +509,6 @@ def serve(compositor: Compositor, address: str, host_address: str, stop: threadi
         stop.wait(1.0)
     set_not_serving(health, [SERVICE])
     server.stop(grace=1.0).wait()
-    log.info("compositor done: %d complete, incomplete %s, report in %s", doc["frames_complete"],
-             doc["frames_incomplete"], doc["run_dir"] or compositor.out_dir)
+    log.info("compositor done: %d complete, incomplete %s, %s, report in %s", doc["frames_complete"],
+             doc["frames_incomplete"], wire_summary(doc["wire"]), doc["run_dir"] or compositor.out_dir)
     return doc

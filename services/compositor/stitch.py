@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from services.rig.colour import decode_srgb8, linear_to_srgb8
 from services.rig.image_io import write_image
 
 from .blend import BlendPlan
@@ -21,20 +22,47 @@ from .timing import Composite
 log = logging.getLogger("ig.compositor")
 
 
-def stitch(frame: CompleteFrame, plan: BlendPlan | None = None) -> np.ndarray:
-    """The channels' images side by side in rig order, (H, W, 3) float16 linear.
+#: The composite's numpy type of each wire format.
+_DTYPES: dict[str, np.dtype] = {"srgb8": np.dtype(np.uint8), "half": np.dtype(np.float16)}
+
+
+def stitch_format(frame: CompleteFrame, prefer: str = "srgb8") -> str:
+    """The format a frame is stitched in: its images' own when they agree (no conversion on the
+    way to the composite), prefer (the rig's wire format) when they do not."""
+    formats = {img.wire for img in frame.images}
+    return formats.pop() if len(formats) == 1 else prefer
+
+
+def as_format(rgb: np.ndarray, wire: str) -> np.ndarray:
+    """An image in the wire format wire: as it is, or converted (sRGB bytes decoded to linear and
+    rounded to half floats; half floats encoded to sRGB bytes as the PNGs are)."""
+    if rgb.dtype == _DTYPES[wire]:
+        return rgb
+    return decode_srgb8(rgb).astype(np.float16) if wire == "half" else linear_to_srgb8(rgb)
+
+
+def _linear(rgb: np.ndarray) -> np.ndarray:
+    """Linear float32 of an image in either format (a new array)."""
+    return decode_srgb8(rgb) if rgb.dtype == np.uint8 else rgb.astype(np.float32)
+
+
+def stitch(frame: CompleteFrame, plan: BlendPlan | None = None, *, prefer: str = "srgb8") -> np.ndarray:
+    """The channels' images side by side in rig order, (H, W, 3): uint8 sRGB when the channels
+    sent sRGB bytes, float16 linear when they sent half floats (stitch_format).
 
     Without a plan, or with one whose seams all abut, W is the sum of the widths and the
     result a plain concatenation: one copy of the pixels, in the format they arrived in
     (widening to float32 here would take four times as long, 20 ms for three 1024 x 768
-    channels, on the way to the composite; the recorder widens what it writes, on its own
-    thread). With overlaps, W is plan.stitched_width and each seam's overlap columns are the
-    two channels cross-faded with the plan's linear-light weights, in float32 (float16 products
-    would lose a bit in the ramp), the rest copied as it came.
+    half-float channels, on the way to the composite; the recorder widens what it writes, on
+    its own thread). With overlaps, W is plan.stitched_width and each seam's overlap columns are
+    the two channels cross-faded with the plan's linear-light weights, in float32 (float16
+    products would lose a bit in the ramp; sRGB bytes are decoded to linear light first and
+    encoded again after), the rest copied as it came.
 
     Args:
         frame: a complete frame, images in rig order.
         plan: the rig's blend_plan (built from the channels at the size they are rendered).
+        prefer: the format of a frame whose channels sent different ones ("srgb8" or "half").
 
     Raises:
         ValueError: the channels differ in height (a rig of unequal rows cannot be stitched), or
@@ -48,30 +76,33 @@ def stitch(frame: CompleteFrame, plan: BlendPlan | None = None) -> np.ndarray:
         if widths != plan.widths:
             raise ValueError(f"frame {frame.frame_number}: channel widths {list(widths)} are not the "
                              f"blend plan's {list(plan.widths)}")
+    wire = stitch_format(frame, prefer)
+    images = [as_format(img.rgb, wire) for img in frame.images]
     if plan is None or not plan.blends:
-        return np.concatenate([img.rgb for img in frame.images], axis=1)
-    out = np.empty((heights.pop(), plan.stitched_width, 3), np.float16)
-    for i, img in enumerate(frame.images):
+        return np.concatenate(images, axis=1)
+    out = np.empty((heights.pop(), plan.stitched_width, 3), _DTYPES[wire])
+    for i, rgb in enumerate(images):
         # The columns this channel shows alone: between its left and right overlaps.
         nl, nr = plan.left_weights[i].size, plan.right_weights[i].size
         width = plan.widths[i]
         x = plan.offsets[i]
-        out[:, x + nl:x + width - nr] = img.rgb[:, nl:width - nr]
+        out[:, x + nl:x + width - nr] = rgb[:, nl:width - nr]
     for i, n in enumerate(plan.overlaps):
         if n == 0:
             continue
-        a = frame.images[i].rgb[:, plan.widths[i] - n:].astype(np.float32)
-        b = frame.images[i + 1].rgb[:, :n].astype(np.float32)
+        a = _linear(images[i][:, plan.widths[i] - n:])
+        b = _linear(images[i + 1][:, :n])
         a *= plan.right_weights[i][None, :, None]
         b *= plan.left_weights[i + 1][None, :, None]
         a += b
         x = plan.offsets[i + 1]
-        out[:, x:x + n] = a  # float32 -> float16, rounded to nearest
+        # float32 -> float16 rounded to nearest, or encoded to sRGB bytes as the PNGs are.
+        out[:, x:x + n] = a if wire == "half" else linear_to_srgb8(a)
     return out
 
 
 def compose(frame: CompleteFrame, plan: BlendPlan | None = None, *,
-            clock: Callable[[], float] = time.time) -> Composite:
+            clock: Callable[[], float] = time.time, prefer: str = "srgb8") -> Composite:
     """The composite of a complete frame: stitched now, and time-stamped when it is done.
 
     The channel images of the returned frame are views of the composite, so the buffers they
@@ -83,11 +114,12 @@ def compose(frame: CompleteFrame, plan: BlendPlan | None = None, *,
         frame: a complete frame, images in rig order.
         plan: the rig's blend_plan; None stitches side by side.
         clock: UNIX seconds, for the composite's time stamp.
+        prefer: as stitch.
 
     Raises:
         ValueError: as stitch.
     """
-    rgb = stitch(frame, plan)
+    rgb = stitch(frame, plan, prefer=prefer)
     done = clock()
     images, x = [], 0
     for i, img in enumerate(frame.images):
@@ -99,9 +131,11 @@ def compose(frame: CompleteFrame, plan: BlendPlan | None = None, *,
     return Composite(replace(frame, images=tuple(images)), rgb, done)
 
 
-def frame_attributes(frame: CompleteFrame) -> dict[str, str | float | int]:
-    """Image attributes of a stitched frame: frame number, sim time, eyepoint, channel order, and
-    the external host's frame number (CIGI) when there is one.
+def frame_attributes(frame: CompleteFrame, wire: str = "half") -> dict[str, str | float | int]:
+    """Image attributes of a stitched frame: frame number, sim time, eyepoint, channel order, the
+    wire format the composite was stitched in (an EXR of an "srgb8" composite holds 8-bit
+    levels decoded to linear: quantised), and the external host's frame number (CIGI) when
+    there is one.
 
     Image files store float attributes as float32, centimetres at airfield distances; the
     `eyepoint` string ("x y z heading pitch roll", metres and degrees) keeps the exact float64s.
@@ -111,7 +145,7 @@ def frame_attributes(frame: CompleteFrame) -> dict[str, str | float | int]:
         "frame_number": frame.frame_number, "sim_time_s": frame.sim_time_s, "eye_x": x, "eye_y": y,
         "eye_z": z, "heading_deg": h, "pitch_deg": p, "roll_deg": r,
         "eyepoint": " ".join(repr(float(v)) for v in frame.eyepoint),
-        "channels": ",".join(img.channel for img in frame.images)}
+        "channels": ",".join(img.channel for img in frame.images), "wire": wire}
     if frame.host_frame_number is not None:
         # A string: image files keep integer attributes as int32, and CIGI's are uint32.
         attributes["host_frame_number"] = str(frame.host_frame_number)
@@ -139,7 +173,9 @@ class FrameRecorder:
 
     Writes `frame_NNNNNN.png` (sRGB 8-bit) for every frame number divisible by record_every and
     `frame_NNNNNN.exr` (linear half RGB with the frame attributes) for every one divisible by
-    exr_every (0: never, for either).
+    exr_every (0: never, for either). A composite of sRGB-wire channels (uint8) goes into its
+    PNG byte for byte; its EXR holds those bytes decoded to linear, 8-bit levels (quantised;
+    the `ig:wire` attribute says "srgb8"): record from half-float channels for accurate EXRs.
 
     Recording is a copy of what the rig shows, not part of showing it: encoding a 3072 x 768
     PNG takes a few hundred milliseconds, longer than a frame. So offer() never waits: when the
@@ -219,7 +255,7 @@ class FrameRecorder:
             composite, png, exr = item
             frame = composite.frame
             try:
-                attrs = frame_attributes(frame)
+                attrs = frame_attributes(frame, "srgb8" if composite.rgb.dtype == np.uint8 else "half")
                 path = self.out_dir / f"frame_{frame.frame_number:06d}.png"
                 if png:
                     write_image(path, composite.rgb, attributes=attrs)

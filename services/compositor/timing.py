@@ -27,7 +27,7 @@ HOPS: tuple[tuple[str, str], ...] = (
     ("publish_to_worker_receive", "host -> worker: frame stream"),
     ("worker_receive_to_render_start", "worker: mailbox -> render start"),
     ("render", "worker: render"),
-    ("render_end_to_compositor_receive", "worker -> compositor: encode, send, receive"),
+    ("render_end_to_compositor_receive", "worker -> compositor: encode, send (or share), receive"),
     ("compositor_receive_to_composite", "compositor: last image received -> composite stitched"),
 )
 
@@ -38,7 +38,8 @@ class Composite:
 
     Attributes:
         frame: the complete frame (its images, eyepoint, host time stamps).
-        rgb: (H, sum of widths, 3) float16 linear RGB, the channels side by side in rig order.
+        rgb: (H, sum of widths, 3) float16 linear RGB or uint8 sRGB (stitch.stitch_format), the
+            channels side by side in rig order.
         time: UNIX seconds when the stitch was done (the composite time latency is measured to).
     """
 

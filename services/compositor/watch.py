@@ -14,6 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ig.v1 import compositor_pb2, frame_pb2
+from services.rig.colour import SRGB8_TO_LINEAR
 from services.rig.mailbox import Mailbox
 
 from .gather import CompleteFrame
@@ -33,11 +34,14 @@ _LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)
 def row_profile(rgb: np.ndarray, *, max_columns: int = PROFILE_COLUMNS) -> np.ndarray:
     """Mean linear luminance of every row of an (H, W, 3) image, top row first, (H,) float32.
 
-    Every ceil(W / max_columns)-th column is averaged: a few milliseconds for a 1024 x 768
-    channel instead of ten.
+    The image is linear (float) or sRGB bytes (uint8, decoded by table). Every
+    ceil(W / max_columns)-th column is averaged: a few milliseconds for a 1024 x 768 channel
+    instead of ten.
     """
     stride = max(1, -(-rgb.shape[1] // max_columns))
     columns = rgb[:, ::stride]
+    if columns.dtype == np.uint8:
+        columns = SRGB8_TO_LINEAR[columns]
     return np.einsum("hwc,c->h", columns, _LUMINANCE, dtype=np.float32) / np.float32(columns.shape[1])
 
 

@@ -8,7 +8,7 @@ import sys
 
 from .frame import MAX_CHANNEL_PIXELS
 from .grpc_util import Security
-from .rigfile import Rig, RigError, default_rig_path, load_rig
+from .rigfile import WIRE_FORMATS, Rig, RigError, WireSpec, default_rig_path, load_rig
 
 #: Exit codes of every `ig` subcommand.
 EXIT_OK = 0
@@ -44,6 +44,29 @@ def security_of(rig: Rig) -> Security:
         ValueError: a certificate file that cannot be read; the message names it.
     """
     return Security.from_files(rig.tls.ca, rig.tls.cert, rig.tls.key, allow_plaintext=rig.tls.allow_plaintext)
+
+
+def add_wire_arguments(parser: argparse.ArgumentParser, *, compositor: bool) -> None:
+    """--wire and --shared-memory / --no-shared-memory, over the rig file's [compositor] wire
+    and shared_memory keys (docs/rig-format.md), for a worker or for the compositor."""
+    parser.add_argument(
+        "--wire", choices=WIRE_FORMATS, default=None,
+        help=("the format a frame is stitched in when its channels sent different ones" if compositor else
+              "pixel format of the images sent to the compositor: srgb8 (display-ready sRGB bytes, as the PNGs) "
+              "or half (linear half floats, for accurate EXR recording)")
+        + "; default: the rig file's compositor.wire, srgb8 unless set")
+    parser.add_argument(
+        "--shared-memory", action=argparse.BooleanOptionalAction, default=None,
+        help=("take images from workers on this machine in shared memory (--no-shared-memory: refuse them, the "
+              "workers send inline)" if compositor else
+              "hand the images to a compositor on this machine in shared memory")
+        + "; default: the rig file's compositor.shared_memory, on unless set")
+
+
+def wire_of(args: argparse.Namespace, rig: Rig) -> WireSpec:
+    """The rig file's WireSpec under the command line's --wire and --shared-memory."""
+    shared = rig.wire.shared_memory if args.shared_memory is None else args.shared_memory
+    return WireSpec(args.wire or rig.wire.format, shared)
 
 
 def error(command: str, message: object) -> None:

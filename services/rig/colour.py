@@ -28,15 +28,28 @@ _LUT_SIZE = 1 << 16
 _SRGB8_LUT = np.round(_srgb_encode(np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) * 255.0).astype(np.uint8)
 
 
-def linear_to_srgb8(rgb: np.ndarray) -> np.ndarray:
-    """Encode linear RGB (any shape, last axis channels) as sRGB 8-bit; NaN -> 0, clipped to [0, 1]."""
+def linear_to_srgb8(rgb: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Encode linear RGB (any shape, last axis channels) as sRGB 8-bit; NaN -> 0, clipped to [0, 1].
+
+    Args:
+        rgb: linear values.
+        out: where to write (a C-contiguous uint8 array of rgb's shape: a worker's shared-memory
+            slot, say); None: a new array.
+
+    Raises:
+        ValueError: out is not a C-contiguous uint8 array of rgb's shape.
+    """
     c = np.ascontiguousarray(rgb, dtype=np.float32)
-    out = np.empty(c.shape, np.uint8)
+    if out is None:
+        out = np.empty(c.shape, np.uint8)
+    elif out.shape != c.shape or out.dtype != np.uint8 or not out.flags.c_contiguous:
+        raise ValueError(f"out: {out.dtype} {out.shape} is not a contiguous uint8 array of shape {c.shape}")
     _encode_kernel(c.reshape(-1), _SRGB8_LUT, out.reshape(-1))
     return out
 
 
-@njit(cache=True)
+# nogil: a worker encodes while its receiver thread takes the host's next frame.
+@njit(cache=True, nogil=True)
 def _encode_kernel(c, lut, out):
     """One pass of clip, quantise and table look-up (the numpy chain of the same took ~10 x
     longer on a stitched 3072 x 768 frame, on the compositor's critical path)."""
@@ -54,3 +67,16 @@ def _encode_kernel(c, lut, out):
 def srgb8_to_linear(srgb: np.ndarray) -> np.ndarray:
     """Inverse of linear_to_srgb8, float32."""
     return srgb_to_linear(srgb.astype(np.float32) / np.float32(255.0)).astype(np.float32)
+
+
+#: srgb8_to_linear of every byte: decoding an 8-bit image is one look-up per component (the
+#: compositor's blend, row profiles and EXR recording of sRGB-wire channels).
+SRGB8_TO_LINEAR = srgb8_to_linear(np.arange(256, dtype=np.uint8))
+SRGB8_TO_LINEAR.flags.writeable = False
+
+
+def decode_srgb8(srgb: np.ndarray) -> np.ndarray:
+    """srgb8_to_linear of a uint8 array by table, bit for bit the same, float32."""
+    if srgb.dtype != np.uint8:
+        raise ValueError(f"srgb: dtype {srgb.dtype} is not uint8")
+    return SRGB8_TO_LINEAR[srgb]

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import OpenImageIO as oiio
 
-from .colour import linear_to_srgb8
+from .colour import decode_srgb8, linear_to_srgb8
 
 AttrValue = str | float | int
 
@@ -24,7 +24,9 @@ def write_image(path: str | Path, rgb_linear: np.ndarray, *, range_m: np.ndarray
     Args:
         path: destination; `.exr` writes linear half-float RGB (and float32 `Z` if range_m is
             given), anything else writes sRGB 8-bit RGB.
-        rgb_linear: (H, W, 3) linear RGB.
+        rgb_linear: (H, W, 3) linear RGB; or uint8, sRGB-encoded already (a composite of
+            sRGB-wire channels): a PNG takes the bytes as they are, an EXR their linear values
+            (8-bit levels: quantised).
         range_m: (H, W) metres from the eye, +inf for sky; stored only in EXR.
         attributes: metadata, stored as `ig:<key>` attributes.
 
@@ -32,12 +34,14 @@ def write_image(path: str | Path, rgb_linear: np.ndarray, *, range_m: np.ndarray
         OSError: OpenImageIO could not create or write the file (its message is included).
     """
     path = Path(path)
-    rgb = np.ascontiguousarray(rgb_linear, dtype=np.float32)
-    if rgb.ndim != 3 or rgb.shape[2] != 3:
-        raise ValueError(f"rgb_linear: shape {rgb.shape} is not (H, W, 3)")
-    height, width = rgb.shape[:2]
+    rgb_linear = np.asarray(rgb_linear)
     is_exr = path.suffix.lower() == ".exr"
+    if rgb_linear.ndim != 3 or rgb_linear.shape[2] != 3:
+        raise ValueError(f"rgb_linear: shape {rgb_linear.shape} is not (H, W, 3)")
+    height, width = rgb_linear.shape[:2]
     if is_exr:
+        rgb = decode_srgb8(rgb_linear) if rgb_linear.dtype == np.uint8 else \
+            np.ascontiguousarray(rgb_linear, dtype=np.float32)
         if range_m is not None:
             pixels = np.concatenate([rgb, np.asarray(range_m, np.float32)[..., None]], axis=2)
             spec = oiio.ImageSpec(width, height, 4, oiio.FLOAT)
@@ -52,7 +56,7 @@ def write_image(path: str | Path, rgb_linear: np.ndarray, *, range_m: np.ndarray
         data = pixels
     else:
         spec = oiio.ImageSpec(width, height, 3, oiio.UINT8)
-        data = linear_to_srgb8(rgb)
+        data = np.ascontiguousarray(rgb_linear) if rgb_linear.dtype == np.uint8 else linear_to_srgb8(rgb_linear)
     for key, value in (attributes or {}).items():
         if not is_exr or isinstance(value, bool):
             # PNG keeps only text chunks: numbers are stored as their repr and read back as text.

@@ -52,6 +52,41 @@ class SyncSpec:
     pace: str = "ticks"
 
 
+#: Pixel formats between worker and compositor (the ``wire`` key): display-ready sRGB bytes
+#: (what a display and the PNGs show), or linear half floats (for accurate EXR recording).
+WIRE_FORMATS = ("srgb8", "half")
+
+
+@dataclass(frozen=True)
+class WireSpec:
+    """How channel images travel from the workers to the compositor (the ``[compositor]``
+    table's ``wire`` and ``shared_memory`` keys; docs/rig-format.md).
+
+    Attributes:
+        format: "srgb8" (RGB bytes, sRGB-encoded as the PNGs are) or "half" (linear half floats).
+        shared_memory: a worker on the compositor's machine hands its pixels over in shared
+            memory (services/rig/shared_images.py), falling back to sending them inline.
+    """
+
+    format: str = "srgb8"
+    shared_memory: bool = True
+
+
+def check_wire_format(value: object, where: str) -> str:
+    """value if it is a wire format.
+
+    Raises:
+        ValueError: it is not; the message names where and the value.
+    """
+    if value not in WIRE_FORMATS:
+        raise ValueError(f"{where}: {value!r} is not one of {_one_of(WIRE_FORMATS)}")
+    return str(value)
+
+
+def _one_of(names: tuple[str, ...]) -> str:
+    return ", ".join(repr(n) for n in names)
+
+
 @dataclass(frozen=True)
 class BlendSpec:
     """Edge blending between adjacent channels (the ``[blend]`` table; docs/edge-blending.md).
@@ -159,6 +194,7 @@ class Rig:
     blend: BlendSpec = field(default_factory=BlendSpec)
     tls: TlsSpec = field(default_factory=TlsSpec)
     cigi: CigiSpec = field(default_factory=CigiSpec)
+    wire: WireSpec = field(default_factory=WireSpec)
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -226,14 +262,15 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
     except ValueError as exc:
         raise RigError(f"{source}: {exc}") from None
     addresses = {}
-    for section in ("host", "compositor"):
+    for section, known in (("host", ("address",)), ("compositor", ("address", "wire", "shared_memory"))):
         table = doc.get(section)
         if not isinstance(table, dict) or "address" not in table:
             raise fail(section, "missing table with an 'address' key")
         for key in table:
-            if key != "address":
-                raise fail(f"{section}.{key}", "unknown key")
+            if key not in known:
+                raise fail(f"{section}.{key}", f"unknown key (known: {', '.join(known)})")
         addresses[section] = _address(table["address"], f"{section}.address", fail)
+    wire = _wire(doc["compositor"], fail)
     chans = doc.get("channels")
     if not isinstance(chans, list) or not chans:
         raise fail("channels", "expected at least one [[channels]] table")
@@ -308,7 +345,20 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         "tolerance_deg": (float, 0.0, 10.0)}, fail))
     tls = _tls(doc.get("tls", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
     cigi = _cigi(doc, tuple(c.name for c in out), fail)
-    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi)
+    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi, wire)
+
+
+def _wire(table: dict[str, Any], fail) -> WireSpec:
+    out: dict[str, Any] = {}
+    if "wire" in table:
+        if table["wire"] not in WIRE_FORMATS:
+            raise fail("compositor.wire", f"{table['wire']!r} is not one of {_one_of(WIRE_FORMATS)}")
+        out["format"] = table["wire"]
+    if "shared_memory" in table:
+        if not isinstance(table["shared_memory"], bool):
+            raise fail("compositor.shared_memory", f"{table['shared_memory']!r} is not true or false")
+        out["shared_memory"] = table["shared_memory"]
+    return WireSpec(**out)
 
 
 def _cigi(doc: dict[str, Any], channels: tuple[str, ...], fail) -> CigiSpec:
@@ -425,7 +475,12 @@ def _address(value: Any, where: str, fail) -> str:
 
 def rig_toml(rig: Rig) -> str:
     """A rig file for rig (the inverse of parse_rig)."""
-    lines = [f'[host]\naddress = "{rig.host_address}"\n', f'[compositor]\naddress = "{rig.compositor_address}"\n']
+    compositor = f'[compositor]\naddress = "{rig.compositor_address}"\n'
+    if rig.wire.format != WireSpec().format:
+        compositor += f"wire = {_toml_value(rig.wire.format)}\n"
+    if rig.wire.shared_memory != WireSpec().shared_memory:
+        compositor += f"shared_memory = {_toml_value(rig.wire.shared_memory)}\n"
+    lines = [f'[host]\naddress = "{rig.host_address}"\n', compositor]
     changed = {k: v for k, v in rig.render.to_mapping().items() if getattr(RenderOptions(), k) != v}
     if changed:
         lines.append("[render]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in changed.items()))

@@ -34,15 +34,15 @@ from numba.core.dispatcher import Dispatcher
 from channel_worker.compile_jobs import EYEPOINT
 from channel_worker.pipeline.render import render_frame
 from channel_worker.pipeline.scene.load import load_scene
-from channel_worker.worker import encode_rgb_f16
+from channel_worker.submit import warm_encoders
 from services.rig.cli_common import load_rig_or_report
 from services.rig.frame import ChannelSpec
 
 rig = load_rig_or_report(None, "test")
 c = rig.channels[0].spec
 tiny = ChannelSpec("warm-up", 8, 6, c.left_deg, c.right_deg, c.bottom_deg, c.top_deg)
-image = render_frame(load_scene(sys.argv[1]), tiny, EYEPOINT, rig.render.replace(with_range=False))
-encode_rgb_f16(image.rgb)
+render_frame(load_scene(sys.argv[1]), tiny, EYEPOINT, rig.render.replace(with_range=False))
+warm_encoders()
 ours = [d for d in gc.get_objects() if isinstance(d, Dispatcher)
         and d.py_func.__module__.split(".")[0] in ("channel_worker", "services")]
 print(json.dumps({

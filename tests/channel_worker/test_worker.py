@@ -4,7 +4,8 @@ import logging
 
 import numpy as np
 
-from channel_worker.worker import ChannelWorker, LatestFrame, encode_rgb_f16
+from channel_worker.submit import encode_rgb_f16
+from channel_worker.worker import ChannelWorker, LatestFrame
 from ig.v1 import frame_pb2
 from services.rig.frame import ChannelSpec
 from services.rig.options import RenderOptions
@@ -236,3 +237,22 @@ def test_the_log_shows_the_frame_report_at_the_start_of_a_run_and_every_few_seco
     info = [r.getMessage() for r in caplog.records if r.levelno == logging.INFO]
     assert [m.split(":")[0] for m in info] == ["worker centre frame 0", f"worker centre frame {REPORT_EVERY}"]
     assert "visibility" in info[0] and "total" in info[0]
+
+
+def test_the_shared_memory_segment_goes_when_the_worker_stops(make_scene, box_model_factory):
+    """SIGTERM sets the stop event (grpc_util.stop_on_signals); run's way out removes the segment."""
+    import threading
+
+    from services.rig.shared_images import SHM_DIR, shared_memory_supported
+
+    w, _ = worker(make_scene, box_model_factory)
+    if not shared_memory_supported():
+        assert not w.sender.shared
+        return
+    assert w.sender.shared  # the compositor's address is this machine's
+    segment = SHM_DIR / w.sender.ring.name
+    assert segment.exists()
+    stop = threading.Event()
+    stop.set()
+    w.run(stop)
+    assert not segment.exists() and not w.sender.shared

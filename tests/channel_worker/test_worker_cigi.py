@@ -12,6 +12,7 @@ from ig.v1 import frame_pb2
 from services.rig.environment import Environment, environment_to_proto
 from services.rig.frame import ChannelSpec, Eyepoint
 from services.rig.options import RenderOptions
+from services.rig.rigfile import WireSpec
 
 from .test_worker_acks import RecordingStub
 
@@ -25,7 +26,9 @@ def worker(make_scene, box_model_factory, stub):
     db = make_scene({"b": box_model_factory(10, 10, 10)},
                     [{"model": "b", "position": [100.0, 100.0, 0.0]}, {"model": "b", "position": [0.0, 300.0, 0.0]}],
                     sky="#2050c0", earth="#406020")
-    w = ChannelWorker(db, SPEC, host_address="127.0.0.1:1", compositor_address="127.0.0.1:1", options=OPTIONS)
+    # Half floats inline: the stub reads the renders' values from the request itself.
+    w = ChannelWorker(db, SPEC, host_address="127.0.0.1:1", compositor_address="127.0.0.1:1", options=OPTIONS,
+                      wire=WireSpec("half", shared_memory=False))
     w.host_stub = w.compositor_stub = stub
     return w
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +20,7 @@ import pytest
 from services.demo import local_rig
 from services.rig.image_io import read_image
 from services.rig.options import RenderOptions
-from services.rig.rigfile import default_rig_path, load_rig, rig_toml
+from services.rig.rigfile import WireSpec, default_rig_path, load_rig, rig_toml
 
 from .conftest import kill_all, start, wait_all
 
@@ -48,7 +49,9 @@ def write_igc(path: Path) -> Path:
 @pytest.fixture(scope="module")
 def replay_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("replay")
-    rig = local_rig(load_rig(default_rig_path()).with_size(W, H))
+    # Half floats on the wire (inline: shared memory off): the EXRs are then the renders'
+    # values, and the rig's other wire is covered end to end (test_rig.py covers the default).
+    rig = replace(local_rig(load_rig(default_rig_path()).with_size(W, H)), wire=WireSpec("half", False))
     rig_path = tmp / "rig.toml"
     rig_path.write_text(rig_toml(rig))
     log = write_igc(tmp / "glider.igc")

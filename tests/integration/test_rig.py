@@ -28,6 +28,7 @@ from ig.v1 import (
     worker_pb2_grpc,
 )
 from services.demo import local_rig
+from services.rig.colour import decode_srgb8, linear_to_srgb8
 from services.rig.grpc_util import check_health, make_channel
 from services.rig.image_io import read_image
 from services.rig.options import RenderOptions
@@ -188,10 +189,17 @@ def test_each_third_of_a_stitched_frame_is_its_channel_at_the_published_eyepoint
         x, y, z, h, p, r = (float(v) for v in attrs["eyepoint"].split())
         assert (x, y, z, h, p, r) == (*eyepoint.position, eyepoint.heading_deg, eyepoint.pitch_deg,
                                       eyepoint.roll_deg)  # bitwise: the host's eyepoint
+        # The rig's default wire: sRGB bytes (in shared memory, all on this machine), which the
+        # PNG holds bit for bit and the EXR as their linear values (quantised to 8-bit levels).
+        png, _ = read_image(rig_run["out"] / "latest" / "frames" / f"frame_{n:06d}.png")
         for i, ch in enumerate(rig_run["rig"].channels):
-            expected = render_frame(database, ch.spec, eyepoint, RenderOptions(samples=4)).rgb.astype(np.float16)
-            np.testing.assert_allclose(pixels[:, i * W:(i + 1) * W], expected.astype(np.float32),
-                                       rtol=1e-3, atol=1e-3, err_msg=f"frame {n} channel {ch.name}")
+            rendered = render_frame(database, ch.spec, eyepoint, RenderOptions(samples=4)).rgb
+            expected = linear_to_srgb8(rendered)
+            np.testing.assert_array_equal(np.round(png[:, i * W:(i + 1) * W] * 255).astype(np.uint8), expected,
+                                          err_msg=f"frame {n} channel {ch.name}")
+            np.testing.assert_array_equal(pixels[:, i * W:(i + 1) * W],
+                                          decode_srgb8(expected).astype(np.float16).astype(np.float32))
+    assert rig_run["report"]["wire"]["composites"] == {"srgb8": EXPECTED}
 
 
 def test_every_process_exits_cleanly(rig_run):

@@ -25,31 +25,33 @@ _sym_db = _symbol_database.Default()
 from ig.v1 import frame_pb2 as ig_dot_v1_dot_frame__pb2
 
 
-DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x16ig/v1/compositor.proto\x12\x05ig.v1\x1a\x11ig/v1/frame.proto\"\x94\x03\n\x19SubmitChannelImageRequest\x12\x14\n\x0c\x66rame_number\x18\x01 \x01(\x04\x12\x14\n\x0c\x63hannel_name\x18\x02 \x01(\t\x12\r\n\x05width\x18\x03 \x01(\r\x12\x0e\n\x06height\x18\x04 \x01(\r\x12(\n\x0cpixel_format\x18\x05 \x01(\x0e\x32\x12.ig.v1.PixelFormat\x12\x0e\n\x06pixels\x18\x06 \x01(\x0c\x12!\n\x08\x65yepoint\x18\x07 \x01(\x0b\x32\x0f.ig.v1.Eyepoint\x12\x15\n\rrender_time_s\x18\x08 \x01(\x01\x12\"\n\x1a\x63ontrol_sample_time_unix_s\x18\t \x01(\x01\x12\x16\n\x0e\x66rames_skipped\x18\n \x01(\x04\x12\x0e\n\x06run_id\x18\x0b \x01(\t\x12\x1d\n\x15\x66rame_received_unix_s\x18\x0c \x01(\x01\x12\x1b\n\x13render_start_unix_s\x18\r \x01(\x01\x12\x19\n\x11render_end_unix_s\x18\x0e \x01(\x01\x12\x15\n\rsubmit_unix_s\x18\x0f \x01(\x01\"\x1c\n\x1aSubmitChannelImageResponse\"\x1c\n\x1aGetCompositorReportRequest\"\xc7\x01\n\x1bGetCompositorReportResponse\x12\x13\n\x0breport_json\x18\x01 \x01(\t\x12\x10\n\x08\x66inished\x18\x02 \x01(\x08\x12\x18\n\x10\x66rames_published\x18\x03 \x01(\x04\x12\x17\n\x0f\x66rames_complete\x18\x04 \x01(\x04\x12\x19\n\x11\x66rames_incomplete\x18\x05 \x01(\x04\x12\x16\n\x0e\x66rames_written\x18\x06 \x01(\x04\x12\x1b\n\x13\x66rames_not_recorded\x18\x07 \x01(\x04\"C\n\x16WatchCompositesRequest\x12\x0f\n\x07watcher\x18\x01 \x01(\t\x12\x18\n\x10profile_channels\x18\x02 \x03(\t\"\xb6\x01\n\rChannelTiming\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x1d\n\x15\x66rame_received_unix_s\x18\x02 \x01(\x01\x12\x1b\n\x13render_start_unix_s\x18\x03 \x01(\x01\x12\x19\n\x11render_end_unix_s\x18\x04 \x01(\x01\x12\x15\n\rsubmit_unix_s\x18\x05 \x01(\x01\x12!\n\x19\x63ompositor_receive_unix_s\x18\x06 \x01(\x01\"5\n\nRowProfile\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x11\n\tluminance\x18\x02 \x03(\x02\"\xf0\x02\n\x17WatchCompositesResponse\x12\x14\n\x0c\x66rame_number\x18\x01 \x01(\x04\x12\x0e\n\x06run_id\x18\x02 \x01(\t\x12\x12\n\nsim_time_s\x18\x03 \x01(\x01\x12!\n\x08\x65yepoint\x18\x04 \x01(\x0b\x32\x0f.ig.v1.Eyepoint\x12\"\n\x1a\x63ontrol_sample_time_unix_s\x18\x05 \x01(\x01\x12\x1b\n\x13publish_time_unix_s\x18\x06 \x01(\x01\x12\x1d\n\x15\x63omposite_time_unix_s\x18\x07 \x01(\x01\x12&\n\x08\x63hannels\x18\x08 \x03(\x0b\x32\x14.ig.v1.ChannelTiming\x12#\n\x08profiles\x18\t \x03(\x0b\x32\x11.ig.v1.RowProfile\x12\x15\n\rwatcher_drops\x18\n \x01(\x04\x12\x1e\n\x11host_frame_number\x18\x0b \x01(\rH\x00\x88\x01\x01\x42\x14\n\x12_host_frame_number*E\n\x0bPixelFormat\x12\x1c\n\x18PIXEL_FORMAT_UNSPECIFIED\x10\x00\x12\x18\n\x14PIXEL_FORMAT_RGB_F16\x10\x01\x32\xa0\x02\n\x11\x43ompositorService\x12Y\n\x12SubmitChannelImage\x12 .ig.v1.SubmitChannelImageRequest\x1a!.ig.v1.SubmitChannelImageResponse\x12\\\n\x13GetCompositorReport\x12!.ig.v1.GetCompositorReportRequest\x1a\".ig.v1.GetCompositorReportResponse\x12R\n\x0fWatchComposites\x12\x1d.ig.v1.WatchCompositesRequest\x1a\x1e.ig.v1.WatchCompositesResponse0\x01\x62\x06proto3')
+DESCRIPTOR = _descriptor_pool.Default().AddSerializedFile(b'\n\x16ig/v1/compositor.proto\x12\x05ig.v1\x1a\x11ig/v1/frame.proto\">\n\x0bSharedImage\x12\x0f\n\x07segment\x18\x01 \x01(\t\x12\x0c\n\x04slot\x18\x02 \x01(\r\x12\x10\n\x08sequence\x18\x03 \x01(\x04\"\xb8\x03\n\x19SubmitChannelImageRequest\x12\x14\n\x0c\x66rame_number\x18\x01 \x01(\x04\x12\x14\n\x0c\x63hannel_name\x18\x02 \x01(\t\x12\r\n\x05width\x18\x03 \x01(\r\x12\x0e\n\x06height\x18\x04 \x01(\r\x12(\n\x0cpixel_format\x18\x05 \x01(\x0e\x32\x12.ig.v1.PixelFormat\x12\x0e\n\x06pixels\x18\x06 \x01(\x0c\x12!\n\x08\x65yepoint\x18\x07 \x01(\x0b\x32\x0f.ig.v1.Eyepoint\x12\x15\n\rrender_time_s\x18\x08 \x01(\x01\x12\"\n\x1a\x63ontrol_sample_time_unix_s\x18\t \x01(\x01\x12\x16\n\x0e\x66rames_skipped\x18\n \x01(\x04\x12\x0e\n\x06run_id\x18\x0b \x01(\t\x12\x1d\n\x15\x66rame_received_unix_s\x18\x0c \x01(\x01\x12\x1b\n\x13render_start_unix_s\x18\r \x01(\x01\x12\x19\n\x11render_end_unix_s\x18\x0e \x01(\x01\x12\x15\n\rsubmit_unix_s\x18\x0f \x01(\x01\x12\"\n\x06shared\x18\x10 \x01(\x0b\x32\x12.ig.v1.SharedImage\"\x1c\n\x1aSubmitChannelImageResponse\"\x1c\n\x1aGetCompositorReportRequest\"\xc7\x01\n\x1bGetCompositorReportResponse\x12\x13\n\x0breport_json\x18\x01 \x01(\t\x12\x10\n\x08\x66inished\x18\x02 \x01(\x08\x12\x18\n\x10\x66rames_published\x18\x03 \x01(\x04\x12\x17\n\x0f\x66rames_complete\x18\x04 \x01(\x04\x12\x19\n\x11\x66rames_incomplete\x18\x05 \x01(\x04\x12\x16\n\x0e\x66rames_written\x18\x06 \x01(\x04\x12\x1b\n\x13\x66rames_not_recorded\x18\x07 \x01(\x04\"C\n\x16WatchCompositesRequest\x12\x0f\n\x07watcher\x18\x01 \x01(\t\x12\x18\n\x10profile_channels\x18\x02 \x03(\t\"\xb6\x01\n\rChannelTiming\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x1d\n\x15\x66rame_received_unix_s\x18\x02 \x01(\x01\x12\x1b\n\x13render_start_unix_s\x18\x03 \x01(\x01\x12\x19\n\x11render_end_unix_s\x18\x04 \x01(\x01\x12\x15\n\rsubmit_unix_s\x18\x05 \x01(\x01\x12!\n\x19\x63ompositor_receive_unix_s\x18\x06 \x01(\x01\"5\n\nRowProfile\x12\x14\n\x0c\x63hannel_name\x18\x01 \x01(\t\x12\x11\n\tluminance\x18\x02 \x03(\x02\"\xf0\x02\n\x17WatchCompositesResponse\x12\x14\n\x0c\x66rame_number\x18\x01 \x01(\x04\x12\x0e\n\x06run_id\x18\x02 \x01(\t\x12\x12\n\nsim_time_s\x18\x03 \x01(\x01\x12!\n\x08\x65yepoint\x18\x04 \x01(\x0b\x32\x0f.ig.v1.Eyepoint\x12\"\n\x1a\x63ontrol_sample_time_unix_s\x18\x05 \x01(\x01\x12\x1b\n\x13publish_time_unix_s\x18\x06 \x01(\x01\x12\x1d\n\x15\x63omposite_time_unix_s\x18\x07 \x01(\x01\x12&\n\x08\x63hannels\x18\x08 \x03(\x0b\x32\x14.ig.v1.ChannelTiming\x12#\n\x08profiles\x18\t \x03(\x0b\x32\x11.ig.v1.RowProfile\x12\x15\n\rwatcher_drops\x18\n \x01(\x04\x12\x1e\n\x11host_frame_number\x18\x0b \x01(\rH\x00\x88\x01\x01\x42\x14\n\x12_host_frame_number*a\n\x0bPixelFormat\x12\x1c\n\x18PIXEL_FORMAT_UNSPECIFIED\x10\x00\x12\x18\n\x14PIXEL_FORMAT_RGB_F16\x10\x01\x12\x1a\n\x16PIXEL_FORMAT_RGB_SRGB8\x10\x02\x32\xa0\x02\n\x11\x43ompositorService\x12Y\n\x12SubmitChannelImage\x12 .ig.v1.SubmitChannelImageRequest\x1a!.ig.v1.SubmitChannelImageResponse\x12\\\n\x13GetCompositorReport\x12!.ig.v1.GetCompositorReportRequest\x1a\".ig.v1.GetCompositorReportResponse\x12R\n\x0fWatchComposites\x12\x1d.ig.v1.WatchCompositesRequest\x1a\x1e.ig.v1.WatchCompositesResponse0\x01\x62\x06proto3')
 
 _globals = globals()
 _builder.BuildMessageAndEnumDescriptors(DESCRIPTOR, _globals)
 _builder.BuildTopDescriptorsAndMessages(DESCRIPTOR, 'ig.v1.compositor_pb2', _globals)
 if not _descriptor._USE_C_DESCRIPTORS:
   DESCRIPTOR._loaded_options = None
-  _globals['_PIXELFORMAT']._serialized_start=1401
-  _globals['_PIXELFORMAT']._serialized_end=1470
-  _globals['_SUBMITCHANNELIMAGEREQUEST']._serialized_start=53
-  _globals['_SUBMITCHANNELIMAGEREQUEST']._serialized_end=457
-  _globals['_SUBMITCHANNELIMAGERESPONSE']._serialized_start=459
-  _globals['_SUBMITCHANNELIMAGERESPONSE']._serialized_end=487
-  _globals['_GETCOMPOSITORREPORTREQUEST']._serialized_start=489
-  _globals['_GETCOMPOSITORREPORTREQUEST']._serialized_end=517
-  _globals['_GETCOMPOSITORREPORTRESPONSE']._serialized_start=520
-  _globals['_GETCOMPOSITORREPORTRESPONSE']._serialized_end=719
-  _globals['_WATCHCOMPOSITESREQUEST']._serialized_start=721
-  _globals['_WATCHCOMPOSITESREQUEST']._serialized_end=788
-  _globals['_CHANNELTIMING']._serialized_start=791
-  _globals['_CHANNELTIMING']._serialized_end=973
-  _globals['_ROWPROFILE']._serialized_start=975
-  _globals['_ROWPROFILE']._serialized_end=1028
-  _globals['_WATCHCOMPOSITESRESPONSE']._serialized_start=1031
-  _globals['_WATCHCOMPOSITESRESPONSE']._serialized_end=1399
-  _globals['_COMPOSITORSERVICE']._serialized_start=1473
-  _globals['_COMPOSITORSERVICE']._serialized_end=1761
+  _globals['_PIXELFORMAT']._serialized_start=1501
+  _globals['_PIXELFORMAT']._serialized_end=1598
+  _globals['_SHAREDIMAGE']._serialized_start=52
+  _globals['_SHAREDIMAGE']._serialized_end=114
+  _globals['_SUBMITCHANNELIMAGEREQUEST']._serialized_start=117
+  _globals['_SUBMITCHANNELIMAGEREQUEST']._serialized_end=557
+  _globals['_SUBMITCHANNELIMAGERESPONSE']._serialized_start=559
+  _globals['_SUBMITCHANNELIMAGERESPONSE']._serialized_end=587
+  _globals['_GETCOMPOSITORREPORTREQUEST']._serialized_start=589
+  _globals['_GETCOMPOSITORREPORTREQUEST']._serialized_end=617
+  _globals['_GETCOMPOSITORREPORTRESPONSE']._serialized_start=620
+  _globals['_GETCOMPOSITORREPORTRESPONSE']._serialized_end=819
+  _globals['_WATCHCOMPOSITESREQUEST']._serialized_start=821
+  _globals['_WATCHCOMPOSITESREQUEST']._serialized_end=888
+  _globals['_CHANNELTIMING']._serialized_start=891
+  _globals['_CHANNELTIMING']._serialized_end=1073
+  _globals['_ROWPROFILE']._serialized_start=1075
+  _globals['_ROWPROFILE']._serialized_end=1128
+  _globals['_WATCHCOMPOSITESRESPONSE']._serialized_start=1131
+  _globals['_WATCHCOMPOSITESRESPONSE']._serialized_end=1499
+  _globals['_COMPOSITORSERVICE']._serialized_start=1601
+  _globals['_COMPOSITORSERVICE']._serialized_end=1889
 # @@protoc_insertion_point(module_scope)

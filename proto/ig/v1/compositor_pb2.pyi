@@ -12,11 +12,23 @@ class PixelFormat(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
     __slots__ = ()
     PIXEL_FORMAT_UNSPECIFIED: _ClassVar[PixelFormat]
     PIXEL_FORMAT_RGB_F16: _ClassVar[PixelFormat]
+    PIXEL_FORMAT_RGB_SRGB8: _ClassVar[PixelFormat]
 PIXEL_FORMAT_UNSPECIFIED: PixelFormat
 PIXEL_FORMAT_RGB_F16: PixelFormat
+PIXEL_FORMAT_RGB_SRGB8: PixelFormat
+
+class SharedImage(_message.Message):
+    __slots__ = ("segment", "slot", "sequence")
+    SEGMENT_FIELD_NUMBER: _ClassVar[int]
+    SLOT_FIELD_NUMBER: _ClassVar[int]
+    SEQUENCE_FIELD_NUMBER: _ClassVar[int]
+    segment: str
+    slot: int
+    sequence: int
+    def __init__(self, segment: _Optional[str] = ..., slot: _Optional[int] = ..., sequence: _Optional[int] = ...) -> None: ...
 
 class SubmitChannelImageRequest(_message.Message):
-    __slots__ = ("frame_number", "channel_name", "width", "height", "pixel_format", "pixels", "eyepoint", "render_time_s", "control_sample_time_unix_s", "frames_skipped", "run_id", "frame_received_unix_s", "render_start_unix_s", "render_end_unix_s", "submit_unix_s")
+    __slots__ = ("frame_number", "channel_name", "width", "height", "pixel_format", "pixels", "eyepoint", "render_time_s", "control_sample_time_unix_s", "frames_skipped", "run_id", "frame_received_unix_s", "render_start_unix_s", "render_end_unix_s", "submit_unix_s", "shared")
     FRAME_NUMBER_FIELD_NUMBER: _ClassVar[int]
     CHANNEL_NAME_FIELD_NUMBER: _ClassVar[int]
     WIDTH_FIELD_NUMBER: _ClassVar[int]
@@ -32,6 +44,7 @@ class SubmitChannelImageRequest(_message.Message):
     RENDER_START_UNIX_S_FIELD_NUMBER: _ClassVar[int]
     RENDER_END_UNIX_S_FIELD_NUMBER: _ClassVar[int]
     SUBMIT_UNIX_S_FIELD_NUMBER: _ClassVar[int]
+    SHARED_FIELD_NUMBER: _ClassVar[int]
     frame_number: int
     channel_name: str
     width: int
@@ -47,7 +60,8 @@ class SubmitChannelImageRequest(_message.Message):
     render_start_unix_s: float
     render_end_unix_s: float
     submit_unix_s: float
-    def __init__(self, frame_number: _Optional[int] = ..., channel_name: _Optional[str] = ..., width: _Optional[int] = ..., height: _Optional[int] = ..., pixel_format: _Optional[_Union[PixelFormat, str]] = ..., pixels: _Optional[bytes] = ..., eyepoint: _Optional[_Union[_frame_pb2.Eyepoint, _Mapping]] = ..., render_time_s: _Optional[float] = ..., control_sample_time_unix_s: _Optional[float] = ..., frames_skipped: _Optional[int] = ..., run_id: _Optional[str] = ..., frame_received_unix_s: _Optional[float] = ..., render_start_unix_s: _Optional[float] = ..., render_end_unix_s: _Optional[float] = ..., submit_unix_s: _Optional[float] = ...) -> None: ...
+    shared: SharedImage
+    def __init__(self, frame_number: _Optional[int] = ..., channel_name: _Optional[str] = ..., width: _Optional[int] = ..., height: _Optional[int] = ..., pixel_format: _Optional[_Union[PixelFormat, str]] = ..., pixels: _Optional[bytes] = ..., eyepoint: _Optional[_Union[_frame_pb2.Eyepoint, _Mapping]] = ..., render_time_s: _Optional[float] = ..., control_sample_time_unix_s: _Optional[float] = ..., frames_skipped: _Optional[int] = ..., run_id: _Optional[str] = ..., frame_received_unix_s: _Optional[float] = ..., render_start_unix_s: _Optional[float] = ..., render_end_unix_s: _Optional[float] = ..., submit_unix_s: _Optional[float] = ..., shared: _Optional[_Union[SharedImage, _Mapping]] = ...) -> None: ...
 
 class SubmitChannelImageResponse(_message.Message):
     __slots__ = ()

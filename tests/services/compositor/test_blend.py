@@ -308,3 +308,24 @@ def test_blend_plan_is_not_compared_by_value():
     """A plan holds numpy arrays; comparing two by value would be ambiguous, so it is by identity."""
     plan = blend_plan(DEFAULT, NO_BLEND)
     assert isinstance(plan, BlendPlan) and plan == plan and plan != blend_plan(DEFAULT, NO_BLEND)
+
+
+def test_srgb_channels_blend_in_linear_light_and_stay_bytes():
+    """sRGB-wire channels: the overlap decoded to linear light, cross-faded with the same weights
+    as half floats, encoded again; the columns a channel shows alone are its bytes as sent."""
+    from services.rig.colour import decode_srgb8, linear_to_srgb8
+
+    chans = widened(5.0, width=300, outer=True)
+    plan = blend_plan(chans, BlendSpec(overlap_deg=10.0))
+    n = plan.overlaps[0]
+    levels = [np.full((4, 300, 3), v, np.uint8) for v in (40, 200, 90)]
+    composite = compose(frame_of(levels), plan)
+    assert composite.rgb.dtype == np.uint8 and composite.rgb.shape == (4, plan.stitched_width, 3)
+    assert np.all(composite.rgb[:, :plan.offsets[1]] == 40)
+    assert np.all(composite.rgb[:, plan.offsets[1] + n:plan.offsets[2]] == 200)
+    a, b = (decode_srgb8(np.array([v], np.uint8))[0] for v in (40, 200))
+    expected = linear_to_srgb8(a * plan.right_weights[0] + b * plan.left_weights[1])
+    np.testing.assert_array_equal(composite.rgb[0, plan.offsets[1]:plan.offsets[1] + n, 0], expected)
+    # A uniform picture stays uniform across the seams (the weights sum to one in linear light).
+    uniform = compose(frame_of([np.full((4, 300, 3), 123, np.uint8) for _ in range(3)]), plan)
+    assert np.all(uniform.rgb == 123)

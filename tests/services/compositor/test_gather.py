@@ -190,7 +190,8 @@ def test_wrong_pixel_format_is_named():
     g, _ = gatherer()
     bad = image(0, "left")
     bad.pixel_format = compositor_pb2.PIXEL_FORMAT_UNSPECIFIED
-    with pytest.raises(InvalidSubmission, match="pixel_format: PIXEL_FORMAT_UNSPECIFIED is not PIXEL_FORMAT_RGB_F16"):
+    with pytest.raises(InvalidSubmission, match="pixel_format: PIXEL_FORMAT_UNSPECIFIED is not "
+                                                "PIXEL_FORMAT_RGB_SRGB8 or PIXEL_FORMAT_RGB_F16"):
         g.submit(bad)
 
 

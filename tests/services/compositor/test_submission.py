@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from channel_worker.worker import ImageSubmission, encode_rgb_f16, serialize_submission, to_half
+from channel_worker.submit import ImageSubmission, encode_rgb_f16, serialize_submission, to_half
 from ig.v1 import compositor_pb2, frame_pb2
 
 

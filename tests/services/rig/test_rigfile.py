@@ -5,7 +5,7 @@ import tomllib
 import pytest
 
 from services.rig.options import RenderOptions
-from services.rig.rigfile import RigError, channel_spec, default_rig_path, load_rig, parse_rig, rig_toml
+from services.rig.rigfile import RigError, WireSpec, channel_spec, default_rig_path, load_rig, parse_rig, rig_toml
 
 ROOT = default_rig_path().parents[3]
 
@@ -58,6 +58,9 @@ def doc():
     (lambda d: d.update(render=4), r"r.toml: render: expected a table of render options"),
     (lambda d: d.update(sync={"pace": "fast"}), r"r.toml: sync.pace: 'fast' is not one of ticks, acks"),
     (lambda d: d.update(sync={"pase": "acks"}), r"sync.pase: unknown key \(known: .*max_pending_mib, pace\)"),
+    (lambda d: d["compositor"].update(wire="rgb8"), r"r.toml: compositor.wire: 'rgb8' is not one of 'srgb8', 'half'"),
+    (lambda d: d["compositor"].update(shared_memory="yes"), r"r.toml: compositor.shared_memory: 'yes' is not true"),
+    (lambda d: d["compositor"].update(shm=True), r"r.toml: compositor.shm: unknown key \(known: address, wire"),
 ])
 def test_bad_rig_names_key_and_value(mutate, pattern):
     d = doc()
@@ -112,3 +115,13 @@ def test_the_sync_pace_defaults_to_ticks_and_round_trips():
     rig = parse_rig(d)
     assert (rig.sync.pace, rig.sync.frame_timeout_s) == ("acks", 0.1)
     assert parse_rig(tomllib.loads(rig_toml(rig))).sync == rig.sync
+
+
+def test_the_wire_keys_default_to_srgb8_in_shared_memory_and_survive_rig_toml():
+    assert parse_rig(doc()).wire == WireSpec("srgb8", True)
+    d = doc()
+    d["compositor"].update(wire="half", shared_memory=False)
+    rig = parse_rig(d)
+    assert rig.wire == WireSpec("half", False)
+    assert parse_rig(tomllib.loads(rig_toml(rig))).wire == rig.wire
+    assert "wire" not in rig_toml(parse_rig(doc()))  # defaults are left out
