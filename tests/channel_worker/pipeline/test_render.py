@@ -165,9 +165,10 @@ def test_a_full_translucent_store_drops_the_farthest_and_says_so(make_scene, box
 @pytest.mark.parametrize("renderer", ["subarea", "scanline"])
 def test_two_threads_draw_what_one_draws(renderer):
     """Threads take runs of sub-areas, rows of cloud blocks, bands and blocks of terrain lines
-    (two threads: blocks of other sizes) from work queues (jit.claim); every pixel is still computed by one thread with the same arithmetic, so the
-    demo scene (terrain, clouds, fog, haze, the airfield; the scan-line renderer draws the
-    airfield alone) comes out bit for bit the same."""
+    (two threads: blocks of other sizes) from work queues (jit.claim); every pixel is still
+    computed by one thread with the same arithmetic, so the demo scene (terrain, clouds, fog,
+    haze, the airfield; the scan-line renderer draws the airfield alone) comes out bit for bit
+    the same."""
     from channel_worker.pipeline.jit import thread_pool_size
     from channel_worker.pipeline.scene.load import bundled_scene_path, demo_scene_path, load_scene
     if thread_pool_size() < 2:
