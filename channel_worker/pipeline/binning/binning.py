@@ -15,6 +15,7 @@ than anything left in it.
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from channel_worker.pipeline.contract import Bins, Edges
@@ -26,6 +27,11 @@ from ._binning_kernels import bin_classify_kernel, bin_fill_kernel, row_buckets
 #: 1e-9 px; with this band a sub-area classed fully covered is inside every edge by a positive
 #: margin at every point, which the exact integer sample test then also finds.
 DCRIT_GUARD = 1e-6
+#: Candidate (feature, sub-area) pairs per thread the binning kernels are given at least: the
+#: demo frame's ten thousand took 0.34 ms on one thread of a 16-core Xeon and 0.55 ms on 16,
+#: where starting and joining the threads of two parallel loops outweighed the work. A
+#: scene with many more features still bins on every thread.
+CANDIDATES_PER_THREAD = 32768
 
 
 def bin_features(edges: Edges, start: np.ndarray, width: int, height: int, subarea: int) -> Bins:
@@ -48,12 +54,17 @@ def bin_features(edges: Edges, start: np.ndarray, width: int, height: int, subar
     counts = np.zeros(tiles_x * tiles_y, np.int64)
     rows = row_buckets(edges, order, size, tiles_y)
     classes = np.empty(int(rows[2][-1]), np.uint8)
-    bin_classify_kernel(edges, start, dcrit, size, tiles_x, tiles_y, rows, classes, counts)
-    tile_start = np.zeros(tiles_x * tiles_y + 1, np.int64)
-    np.cumsum(counts, out=tile_start[1:])
-    total = int(tile_start[-1])
-    polygon = np.empty(total, np.int32)
-    full = np.empty(total, np.bool_)
-    bin_fill_kernel(edges, size, tiles_x, tiles_y, rows, classes, tile_start, polygon, full)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(max(1, min(threads, classes.shape[0] // CANDIDATES_PER_THREAD)))
+    try:
+        bin_classify_kernel(edges, start, dcrit, size, tiles_x, tiles_y, rows, classes, counts)
+        tile_start = np.zeros(tiles_x * tiles_y + 1, np.int64)
+        np.cumsum(counts, out=tile_start[1:])
+        total = int(tile_start[-1])
+        polygon = np.empty(total, np.int32)
+        full = np.empty(total, np.bool_)
+        bin_fill_kernel(edges, size, tiles_x, tiles_y, rows, classes, tile_start, polygon, full)
+    finally:
+        numba.set_num_threads(threads)
     return Bins(size=size, tiles_x=tiles_x, tiles_y=tiles_y, start=tile_start,
                 polygon=polygon, full=full)
