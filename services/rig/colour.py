@@ -25,7 +25,8 @@ def _srgb_encode(c: np.ndarray) -> np.ndarray:
 # by at most 12.92/65535 (the steepest slope, at black), a fifth of an 8-bit level, and the
 # table is ten times faster than evaluating the power per pixel of a 3072 x 768 frame.
 _LUT_SIZE = 1 << 16
-_SRGB8_LUT = np.round(_srgb_encode(np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) * 255.0).astype(np.uint8)
+#: The table itself (public: the worker's parallel encoder reads it too, channel_worker/submit.py).
+SRGB8_TABLE = np.round(_srgb_encode(np.arange(_LUT_SIZE) / (_LUT_SIZE - 1)) * 255.0).astype(np.uint8)
 
 
 def linear_to_srgb8(rgb: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
@@ -44,7 +45,7 @@ def linear_to_srgb8(rgb: np.ndarray, out: np.ndarray | None = None) -> np.ndarra
         out = np.empty(c.shape, np.uint8)
     elif out.shape != c.shape or out.dtype != np.uint8 or not out.flags.c_contiguous:
         raise ValueError(f"out: {out.dtype} {out.shape} is not a contiguous uint8 array of shape {c.shape}")
-    _encode_kernel(c.reshape(-1), _SRGB8_LUT, out.reshape(-1))
+    _encode_kernel(c.reshape(-1), SRGB8_TABLE, out.reshape(-1))
     return out
 
 
