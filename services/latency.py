@@ -66,6 +66,7 @@ from services.demo import (
 from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, positive
 from services.rig.grpc_util import STREAM_DEADLINE_S, make_channel
 from services.rig.rigfile import Rig, rig_toml
+from services.rig.threads import usable_cores
 
 #: FAA 14 CFR Part 60, test 4.a.2 (transport delay) of Appendices A (aeroplanes) and C
 #: (helicopters), qualification levels C and D: the longest time from a control's movement
@@ -626,13 +627,28 @@ def run(args: argparse.Namespace) -> int:
         # Every frame of the run, not only the steps' responses (docs/frame-lock.md).
         "compositor": {k: compositor_report.get(k) for k in (
             "frames_complete", "frames_incomplete", "control_to_composite_latency", "latency_chain",
-            "critical_channel", "composite_rate_hz", "render_time")} if compositor_report else None,
+            "critical_channel", "composite_rate_hz", "render_time", "wire")} if compositor_report else None,
+        "machine": machine_summary(),
     }
     out.write_text(json.dumps(doc, indent=2) + "\n")
     print()
     print(format_summary(summary, verdicts, rate_hz=rate, size=size))
     print(f"\nresults: {out}")
     return EXIT_OK if summary["measured"] == summary["steps"] else EXIT_FAILED
+
+
+def machine_summary() -> dict[str, object]:
+    """Where the figures were measured: the date, the CPU model, the cores this process may use
+    (every process of the rig ran on them), the load average."""
+    cpu = "unknown"
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            cpu = next((line.split(":", 1)[1].strip() for line in f if line.startswith("model name")), cpu)
+    except OSError:
+        pass  # not Linux: the model stays unknown
+    return {"date": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "cpu": cpu,
+            "usable_cores": usable_cores(),
+            "load_average_1min": os.getloadavg()[0] if hasattr(os, "getloadavg") else None}
 
 
 def _measure(procs: Processes, rig: Rig, rig_path: Path, scene: list[str], work: Path, args: argparse.Namespace,

@@ -162,4 +162,7 @@ def test_every_step_is_seen_in_the_first_frame_that_can_show_it(tmp_path):
         assert chain[CONTROL_HOP[0]] + chain["host_sample_to_publish"] >= 0
     compositor = doc["compositor"]
     assert compositor["frames_incomplete"] == {"missing_channel": 0, "eyepoint_mismatch": 0}
+    # Where it ran, and the worker -> compositor hop of every image.
+    assert doc["machine"]["usable_cores"] >= 1 and doc["rig"]["threads_per_worker"] >= 1
+    assert compositor["wire"]["render_end_to_compositor_receive"]["count"] >= compositor["frames_complete"]
     assert all(compositor["latency_chain"][k]["count"] == compositor["frames_complete"] for k, _ in HOPS)
