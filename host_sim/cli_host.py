@@ -4,7 +4,9 @@ The eyepoints come from one of:
 - the bundled scripted flight (default);
 - the flight model flown by cockpit controls (`--controls URL`, repeatable; docs/host-inputs.md);
 - a flight log (`--replay FILE`; docs/replay-formats.md);
-- an external simulation host speaking CIGI (`--cigi udp://HOST:PORT`; docs/cigi.md).
+- an external simulation host speaking CIGI (`--cigi udp://HOST:PORT`; docs/cigi.md);
+- another simulator's pose stream: FlightGear, JSBSim or X-Plane (`--simhost URL`;
+  docs/sim-hosts.md).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from services.rig.cli_common import (
     non_negative,
     positive,
 )
-from services.rig.rigfile import PACES
+from services.rig.rigfile import PACES, SIMHOST_TIMINGS
 
 log = logging.getLogger("ig.host")
 
@@ -67,6 +69,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="be a CIGI image generator: follow the simulation host whose datagrams arrive "
                              "at udp://HOST:PORT (default: the rig file's cigi.listen, 127.0.0.1:8000 unless "
                              "set); replies go to the host's address on --cigi-host-port (docs/cigi.md)")
+    from host_sim.simhost import BACKENDS
+
+    source.add_argument("--simhost", metavar="URL", nargs="?", const="", default=None,
+                        help="follow another simulator's pose stream (default: the rig file's simhost.url): "
+                             + "; ".join(what for _, _, what in BACKENDS.values()) + " (docs/sim-hosts.md)")
+    parser.add_argument("--simhost-timing", choices=list(SIMHOST_TIMINGS), default=None,
+                        help="with --simhost, the pose between datagrams (default: the rig file's simhost.timing, "
+                             "interpolate unless set): "
+                             + "; ".join(f"{name}: {what}" for name, what in SIMHOST_TIMINGS.items()))
     parser.add_argument("--cigi-host-port", type=int, default=None, metavar="PORT",
                         help="with --cigi: the host's UDP port for replies (default: the rig file's "
                              "cigi.host_port, 8001 unless set)")
@@ -118,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
             ("--start", args.start != 0.0), ("--loop", args.loop), ("--replay-origin", args.replay_origin))),
             ("--controls", bool(args.controls), (("--stale-after", args.stale_after is not None),)),
             ("--cigi", args.cigi is not None, (("--cigi-host-port", args.cigi_host_port is not None),
-                                               ("--cigi-mode", args.cigi_mode is not None)))):
+                                               ("--cigi-mode", args.cigi_mode is not None))),
+            ("--simhost", args.simhost is not None, (("--simhost-timing", args.simhost_timing is not None),))):
         misplaced = [flag for flag, used in flags if used]
         if misplaced and not given:
             error("host", f"{', '.join(misplaced)} only apply with {needs}")
@@ -126,13 +138,15 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.cigi is not None:
             eyepoints, source, natural_s = _cigi_source(args, rig, security)
+        elif args.simhost is not None:
+            eyepoints, source, natural_s = _simhost_source(args, rig)
         else:
             eyepoints, source, natural_s = _eyepoint_source(args)
     except ValueError as exc:
         error("host", exc)
         return EXIT_BAD_INPUT
     except OSError as exc:
-        error("host", f"--cigi: cannot listen: {exc}")
+        error("host", f"{'--cigi' if args.cigi is not None else '--simhost'}: cannot listen: {exc}")
         return EXIT_FAILED
     duration = args.duration if args.duration is not None else (natural_s if math.isfinite(natural_s)
                                                                   else UNTIL_STOPPED_S)
@@ -219,6 +233,26 @@ def _cigi_source(args: argparse.Namespace, rig, security):
     return endpoint, endpoint.frame_input, math.inf
 
 
+def _simhost_source(args: argparse.Namespace, rig):
+    """(the pose stream's receiver, started; its frame_input; no natural end).
+
+    Raises:
+        ValueError: no URL, or a bad URL (named).
+        OSError: the UDP port cannot be bound.
+    """
+    from host_sim.simhost import open_simhost
+
+    spec = rig.simhost
+    url = args.simhost or spec.url
+    if not url:
+        raise ValueError("--simhost: no URL given and the rig file has no simhost.url")
+    receiver = open_simhost(url, origin=spec.origin or rig.cigi.origin, eye_offset_m=spec.eye_offset_m,
+                            timing=args.simhost_timing or spec.timing, delay_s=spec.delay_s,
+                            max_extrapolate_s=spec.max_extrapolate_s, stale_after_s=spec.stale_after_s,
+                            rate_hz=args.rate)
+    return receiver.start(), receiver.frame_input, math.inf
+
+
 def _report(args: argparse.Namespace) -> int:
     """`--report`: the replay report and its plot; 0 ok, 1 the plot cannot be written, 2 bad input."""
     from pathlib import Path
@@ -268,6 +302,11 @@ def _log_summary(eyepoints) -> None:
                  "(%d invalid, %d failed), restarts %d", s["host_address"] or "never heard", s["version"],
                  s["byte_order"], s["messages"], s["ig_frames"], s["refused"] or "none", s["unused"] or "none",
                  s["queries_answered"], s["queries_invalid"], s["queries_failed"], s["restarts"])
+    elif eyepoints is not None and hasattr(eyepoints, "stream"):
+        p = eyepoints.status()
+        log.info("simulator %s: %d poses, refused %s, unused %d, frames late %d, extrapolated %d, held %d, "
+                 "stale %d time(s)", p.name, p.accepted, p.refused or "none", p.unused, p.late, p.extrapolated,
+                 p.held, p.stale_events)
 
 
 def _worker_starting(rig, security):

@@ -99,6 +99,16 @@ def eyepoint_source_status(eyepoints: Any) -> dict[str, Any]:
         status = eyepoints.session.status()
         status["listen"] = f"{eyepoints.listen[0]}:{eyepoints.listen[1]}"
         return {"eyepoint_source": "cigi", "cigi": host_pb2.CigiStatus(**status)}
+    from .simhost.receiver import UdpPoseSource
+
+    if isinstance(eyepoints, UdpPoseSource):
+        p = eyepoints.status()
+        values = {**p.values, "interval_s": p.interval_s, "delay_s": p.delay_s}
+        return {"eyepoint_source": "simhost",
+                "inputs": [host_pb2.InputSourceStatus(
+                    name=p.name, accepted=p.accepted, rejected=p.refused, stale=p.stale,
+                    last_input_age_s=p.last_input_age_s, last_rejection=p.last_rejection, counters=p.counters(),
+                    values=values)]}
     return {"eyepoint_source": "bundled"}
 
 

@@ -165,6 +165,44 @@ class CigiSpec:
     configured: bool = False
 
 
+#: How the host follows another simulator's pose stream between its datagrams (the ``[simhost]``
+#: table's ``timing``): name -> what it means, for --help and the rig file's errors
+#: (docs/sim-hosts.md).
+SIMHOST_TIMINGS = {
+    "interpolate": "show the pose a fixed delay behind the newest datagram, interpolated between the two "
+                   "around it (smooth under jitter; the delay is added to the latency)",
+    "extrapolate": "show the pose now, extrapolated from the last two datagrams up to max_extrapolate_s "
+                   "(no added delay; overshoots when the aircraft changes its motion)",
+}
+
+
+@dataclass(frozen=True)
+class SimHostSpec:
+    """Another simulator's pose stream as the eyepoint (the ``[simhost]`` table; docs/sim-hosts.md).
+
+    Attributes:
+        url: what `ig host --simhost` without a URL follows (fgfs://, fgfs-generic://,
+            xplane://); "": the flag needs one.
+        origin: WGS-84 latitude, longitude (degrees) and height (metres) of the world's
+            (0, 0, 0); None takes ``cigi.origin`` (the bundled airfield's unless set).
+        eye_offset_m: the pilot's eye from the point the simulator reports (its flight model's
+            reference point or centre of gravity), body axes x forward, y right, z down, metres.
+        timing: a name of SIMHOST_TIMINGS.
+        delay_s: the interpolation delay behind the newest datagram, seconds; 0 takes 1.5
+            measured datagram intervals.
+        max_extrapolate_s: the longest a pose is carried forward past the newest datagram.
+        stale_after_s: the simulator is reported stale after this long without a datagram.
+    """
+
+    url: str = ""
+    origin: tuple[float, float, float] | None = None
+    eye_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    timing: str = "interpolate"
+    delay_s: float = 0.0
+    max_extrapolate_s: float = 0.1
+    stale_after_s: float = 1.0
+
+
 @dataclass(frozen=True)
 class RigChannel:
     """One channel of the rig: its view (a ChannelSpec, see channel_spec) and the address
@@ -195,6 +233,7 @@ class Rig:
     tls: TlsSpec = field(default_factory=TlsSpec)
     cigi: CigiSpec = field(default_factory=CigiSpec)
     wire: WireSpec = field(default_factory=WireSpec)
+    simhost: SimHostSpec = field(default_factory=SimHostSpec)
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -255,7 +294,8 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         return RigError(f"{source}: {where}: {message}")
 
     for key in doc:
-        if key not in {"host", "compositor", "channels", "render", "sync", "blend", "tls", "cigi"}:
+        if key not in {"host", "compositor", "channels", "render", "sync", "blend", "tls", "cigi",
+                       "simhost"}:
             raise fail(key, "unknown key")
     try:
         render = RenderOptions.from_mapping(doc.get("render", {}), where="render")
@@ -345,7 +385,8 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         "tolerance_deg": (float, 0.0, 10.0)}, fail))
     tls = _tls(doc.get("tls", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
     cigi = _cigi(doc, tuple(c.name for c in out), fail)
-    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi, wire)
+    return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi, wire,
+               _simhost(doc, fail))
 
 
 def _wire(table: dict[str, Any], fail) -> WireSpec:
@@ -406,6 +447,52 @@ def _cigi(doc: dict[str, Any], channels: tuple[str, ...], fail) -> CigiSpec:
                 raise fail(f"cigi.{key}", f"{v!r} is not a number in [{lo:g}, {hi:g}]")
             out[key] = float(v)
     return CigiSpec(**out, configured="cigi" in doc)
+
+
+def _simhost(doc: dict[str, Any], fail) -> SimHostSpec:
+    table = doc.get("simhost", {})
+    if not isinstance(table, dict):
+        raise fail("simhost", f"{table!r} is not a table")
+    known = ("url", "origin", "eye_offset_m", "timing", "delay_s", "max_extrapolate_s", "stale_after_s")
+    for key in table:
+        if key not in known:
+            raise fail(f"simhost.{key}", f"unknown key (known: {', '.join(known)})")
+    out: dict[str, Any] = {}
+    if "url" in table:
+        url = table["url"]
+        if not isinstance(url, str) or "://" not in url:
+            raise fail("simhost.url", f"{url!r} is not a URL (fgfs://HOST:PORT, xplane://HOST:PORT, ...)")
+        out["url"] = url
+
+    def triple(key: str) -> tuple[float, float, float] | None:
+        v = table[key]
+        ok = (isinstance(v, list) and len(v) == 3
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v))
+        return tuple(float(x) for x in v) if ok else None  # type: ignore[return-value]
+
+    if "origin" in table:
+        origin = triple("origin")
+        if origin is None or not (abs(origin[0]) <= 90 and abs(origin[1]) <= 180 and abs(origin[2]) <= 20000):
+            raise fail("simhost.origin", f"{table['origin']!r} is not [latitude within +-90, longitude within "
+                                         f"+-180, height within +-20000 m]")
+        out["origin"] = origin
+    if "eye_offset_m" in table:
+        offset = triple("eye_offset_m")
+        if offset is None or max(abs(x) for x in offset) > 100.0:
+            raise fail("simhost.eye_offset_m", f"{table['eye_offset_m']!r} is not [x forward, y right, z down] "
+                                               f"metres, each within +-100")
+        out["eye_offset_m"] = offset
+    if "timing" in table:
+        if table["timing"] not in SIMHOST_TIMINGS:
+            raise fail("simhost.timing", f"{table['timing']!r} is not one of {_one_of(tuple(SIMHOST_TIMINGS))}")
+        out["timing"] = table["timing"]
+    for key, lo, hi in (("delay_s", 0.0, 1.0), ("max_extrapolate_s", 0.0, 1.0), ("stale_after_s", 0.01, 3600.0)):
+        if key in table:
+            v = table[key]
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or not lo <= v <= hi:
+                raise fail(f"simhost.{key}", f"{v!r} is not a number in [{lo:g}, {hi:g}]")
+            out[key] = float(v)
+    return SimHostSpec(**out)
 
 
 def _table(doc: dict[str, Any], name: str, keys: dict[str, tuple[type, float, float]], fail, *,
@@ -485,7 +572,8 @@ def rig_toml(rig: Rig) -> str:
     if changed:
         lines.append("[render]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in changed.items()))
     for name, spec, default in (("sync", rig.sync, SyncSpec()), ("blend", rig.blend, BlendSpec()),
-                                ("tls", rig.tls, TlsSpec()), ("cigi", rig.cigi, CigiSpec())):
+                                ("tls", rig.tls, TlsSpec()), ("cigi", rig.cigi, CigiSpec()),
+                                ("simhost", rig.simhost, SimHostSpec())):
         table = {k: v for k, v in asdict(spec).items() if getattr(default, k) != v and k != "configured"}
         if table or getattr(spec, "configured", False):
             lines.append(f"[{name}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in table.items()))
