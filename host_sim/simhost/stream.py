@@ -231,7 +231,7 @@ class PoseStream:
         self._poses: deque[Pose] = deque(maxlen=HISTORY)
         self._host_time: float | None = None
         self._named: set[str] = set()
-        self.counters = SimHostStatus(name)
+        self.counters = SimHostStatus(name, stale=False)  # before the first pose: status() says stale
 
     # -- the receiver's side
 
