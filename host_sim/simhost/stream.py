@@ -29,6 +29,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -401,18 +402,24 @@ class PoseStream:
             return self._poses[-1] if self._poses else None
 
     def poses(self, timeout_s: float) -> Iterator[Pose]:
-        """Every pose accepted from now on, as it arrives, until none has come for timeout_s
-        (for tests that drive a simulator into the receiver)."""
+        """Every pose accepted from this call on, as it arrives, until none has come for
+        timeout_s (for tests that drive a simulator into the receiver)."""
         with self._lock:
-            seen = self.counters.accepted
+            seen = self.counters.accepted  # now, not at the first next(): nothing is missed
+        return self._poses_after(seen, timeout_s)
+
+    def _poses_after(self, seen: int, timeout_s: float) -> Iterator[Pose]:
         while True:
             with self._lock:
-                if not self._lock.wait_for(lambda last=seen: self.counters.accepted > last, timeout_s):
+                if not self._lock.wait_for(partial(self._accepted_past, seen), timeout_s):
                     return
                 fresh = min(self.counters.accepted - seen, len(self._poses))
                 batch = list(self._poses)[len(self._poses) - fresh:]
                 seen = self.counters.accepted
             yield from batch
+
+    def _accepted_past(self, count: int) -> bool:
+        return self.counters.accepted > count
 
     def wait_for(self, count: int, timeout_s: float) -> bool:
         """Whether `count` poses in all have been accepted within timeout_s."""

@@ -163,3 +163,23 @@ def test_a_silent_simulator_goes_stale_holds_its_last_pose_and_comes_back():
 def test_bad_timing_names_the_value():
     with pytest.raises(ValueError, match="timing: 'smooth' is not one of interpolate, extrapolate"):
         stream(Clock(), timing="smooth")
+
+
+def test_poses_yields_each_pose_as_it_is_accepted():
+    import itertools
+    import threading
+
+    s = stream(Clock())
+    got = s.poses(timeout_s=30.0)
+
+    def send() -> None:
+        for k in range(3):
+            s.accept(north(10.0 * k), arrival=100.0 + k)
+
+    first = threading.Thread(target=send)  # poses() counts from its call, before these
+    first.start()
+    try:
+        poses = list(itertools.islice(got, 3))
+    finally:
+        first.join()
+    assert [round((p.lat_deg - ORIGIN[0]) * 111_000.0) for p in poses] == [0, 10, 20]
