@@ -2,7 +2,9 @@
 
 The eyepoints come from one of:
 - the bundled scripted flight (default);
-- the flight model flown by cockpit controls (`--controls URL`, repeatable; docs/host-inputs.md);
+- the flight model flown by cockpit controls (`--controls URL`, repeatable; docs/host-inputs.md),
+  the point-mass model or JSBSim (`--fdm jsbsim:AIRCRAFT`; docs/host-flight-model.md);
+- a scripted take-off from the bundled airfield's runway (`--fdm` without --controls);
 - a flight log (`--replay FILE`; docs/replay-formats.md);
 - an external simulation host speaking CIGI (`--cigi udp://HOST:PORT`; docs/cigi.md);
 - another simulator's pose stream: FlightGear, JSBSim or X-Plane (`--simhost URL`;
@@ -100,9 +102,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "segment; time span; largest gap), plot the replayed track and attitude against "
                              "the log's own values into PNG (default out/replay/<log name>.png) and exit "
                              "without serving")
+    parser.add_argument("--fdm", default=None, metavar="MODEL",
+                        help="the flight model, flown by --controls, or without them by a scripted take-off "
+                             "from the bundled runway: " + "; ".join(_fdm_help()) + " (docs/host-flight-model.md)")
     parser.add_argument("--stale-after", type=positive, default=None, metavar="S",
                         help="flag a control source stale after this many seconds without good input "
                              "(default 0.5; a URL's stale_after= overrides it)")
+
+
+def _fdm_help() -> list[str]:
+    from host_sim.fdm import FDMS
+    return list(FDMS.values())
 
 
 def run(args: argparse.Namespace) -> int:
@@ -135,13 +145,16 @@ def run(args: argparse.Namespace) -> int:
         if misplaced and not given:
             error("host", f"{', '.join(misplaced)} only apply with {needs}")
             return EXIT_BAD_INPUT
+    if args.fdm is not None and (args.replay is not None or args.cigi is not None):
+        error("host", "--fdm only applies with --controls or alone (a scripted take-off)")
+        return EXIT_BAD_INPUT
     try:
         if args.cigi is not None:
             eyepoints, source, natural_s = _cigi_source(args, rig, security)
         elif args.simhost is not None:
             eyepoints, source, natural_s = _simhost_source(args, rig)
         else:
-            eyepoints, source, natural_s = _eyepoint_source(args)
+            eyepoints, source, natural_s = _eyepoint_source(args, rig.cigi.origin)
     except ValueError as exc:
         error("host", exc)
         return EXIT_BAD_INPUT
@@ -176,25 +189,36 @@ def run(args: argparse.Namespace) -> int:
             eyepoints.close()
 
 
-def _eyepoint_source(args: argparse.Namespace):
+def _eyepoint_source(args: argparse.Namespace, origin: tuple[float, float, float]):
     """(what the eyepoints come from, eyepoint_at, its natural length in simulated seconds).
 
+    Args:
+        origin: the world's geodetic origin (the rig file's cigi.origin), where JSBSim flies.
+
     Raises:
-        ValueError: a control source or log that cannot be opened (the message names it).
+        ValueError: a control source or log that cannot be opened, a bad --fdm or a missing
+            extra (the message names it).
     """
-    if args.controls:
+    if args.controls or args.fdm is not None:
         from host_sim.controlled import ControlledFlight
+        from host_sim.fdm import RUNWAY_HEADING_DEG, RUNWAY_START_XY_M, open_model, parse_fdm
+        from host_sim.fdm.takeoff import ScriptedTakeoff
         from host_sim.inputs import open_source
 
+        model = open_model(parse_fdm(args.fdm or "point-mass"), origin=origin)
         sources = []
         try:
-            for url in args.controls:
+            for url in args.controls or []:
                 sources.append(open_source(url, stale_after_s=args.stale_after))
         except ValueError:
             for s in sources:
                 s.close()
+            model.close()
             raise
-        flight = ControlledFlight(sources)
+        if not sources:
+            sources.append(ScriptedTakeoff(model, runway_heading_deg=RUNWAY_HEADING_DEG,
+                                           centreline_xy_m=RUNWAY_START_XY_M))
+        flight = ControlledFlight(sources, model=model)
         return flight, flight.eyepoint_at, math.inf
     if args.replay is not None:
         from host_sim.replay import Replay, load_track
@@ -292,7 +316,8 @@ def _log_summary(eyepoints) -> None:
             refused = {k: v for k, v in s.rejected.items() if v}
             log.info("controls %s: %d accepted, refused %s%s", s.name, s.accepted, refused or "none",
                      ", stale at the end" if s.stale else "")
-        log.info("flight model: %d steps", model.steps)
+        log.info("flight model: %d steps, %.1f m/s, %s", model.steps, model.speed_mps,
+                 "on the ground" if model.on_ground else "airborne")
     elif isinstance(eyepoints, Replay):
         r = eyepoints.status()
         log.info("replay %s: ended at log time %.2f s after %d loop(s)", r.path, r.log_time_s, r.loops)

@@ -1,6 +1,8 @@
 """The flight model flown by cockpit control sources: an eyepoint source for the publisher.
 
-The model advances at a fixed step (STEP_HZ) whatever the frame rate: eyepoint_at(t) runs
+The model is the point-mass model (default) or any other FlightModel (host_sim/fdm/base.py:
+JSBSim with `--fdm jsbsim:AIRCRAFT`). It advances at its fixed step (STEP_HZ for the point-mass
+model, 120 Hz for JSBSim) whatever the frame rate: eyepoint_at(t) runs
 every step due by t, polling the control sources with the step's simulation time just before
 it, and interpolates the eyepoint between the two steps around t. The control inputs therefore
 act on the model at step times, never at frame times, so one input log gives the same states
@@ -20,11 +22,11 @@ from dataclasses import dataclass
 from services.rig.frame import Eyepoint
 
 from . import flight_model
-from .flight import EYE_HEIGHT_M, START_XY_M
+from .fdm.base import FlightModel
+from .fdm.point_mass import STEP_HZ, PointMass
 from .inputs.base import Controls, ControlSource, SourceStatus, controls_of
 
-#: Flight-model steps per simulated second.
-STEP_HZ = 100
+__all__ = ["STEP_HZ", "ControlledFlight", "ModelStatus"]
 
 
 @dataclass(frozen=True)
@@ -41,28 +43,40 @@ class ControlledFlight:
 
     Args:
         sources: the control sources, by priority.
-        aircraft: model parameters.
-        initial: the state at time 0; default: at rest on the bundled airfield's runway
-            where the bundled flight starts, facing north.
-        step_hz: model steps per simulated second.
+        aircraft, initial, step_hz: the point-mass model's parameters (host_sim.fdm.point_mass),
+            when no model is given.
+        model: the flight model to fly; default: the point-mass model.
+
+    Raises:
+        ValueError: a bad step_hz, or a model given together with point-mass parameters.
     """
 
     def __init__(self, sources: Sequence[ControlSource], *, aircraft: flight_model.Aircraft | None = None,
-                 initial: flight_model.State | None = None, step_hz: float = STEP_HZ) -> None:
-        if not (step_hz > 0 and math.isfinite(step_hz)):
-            raise ValueError(f"step_hz: {step_hz} must be a finite number > 0")
+                 initial: flight_model.State | None = None, step_hz: float = STEP_HZ,
+                 model: FlightModel | None = None) -> None:
+        if model is not None and (aircraft is not None or initial is not None or step_hz != STEP_HZ):
+            raise ValueError("model: aircraft, initial and step_hz are the point-mass model's; give one or the other")
         self.sources = list(sources)
-        self.aircraft = aircraft or flight_model.Aircraft(eye_height_m=EYE_HEIGHT_M)
-        self.step_hz = float(step_hz)
-        start = initial or flight_model.on_runway(START_XY_M[0], START_XY_M[1], 0.0, self.aircraft)
-        self._k = 0  # steps taken: the state is at time k / step_hz
-        self._prev = start  # the state one step before _state (the same at the start)
-        self._state = start
+        self.model: FlightModel = model or PointMass(aircraft=aircraft, initial=initial, step_hz=step_hz)
+        self.step_hz = self.model.step_hz
+        self._k = 0  # steps taken: the model is at time k / step_hz
+        self._prev = self._eye = self.model.eyepoint()  # eyepoints one step apart (the same at the start)
+
+    @property
+    def aircraft(self) -> flight_model.Aircraft:
+        """The point-mass model's parameters (AttributeError for another model)."""
+        return self._point_mass().aircraft
 
     @property
     def state(self) -> flight_model.State:
-        """The model's latest state (at time steps / step_hz)."""
-        return self._state
+        """The point-mass model's latest state, at time steps / step_hz (AttributeError for
+        another model)."""
+        return self._point_mass().state
+
+    def _point_mass(self) -> PointMass:
+        if not isinstance(self.model, PointMass):
+            raise AttributeError(f"model: {type(self.model).__name__} is not the point-mass model")
+        return self.model
 
     def controls(self) -> Controls:
         """The controls flown now, merged from the sources by priority (module doc)."""
@@ -88,34 +102,34 @@ class ControlledFlight:
         t = float(t_s)
         if math.isnan(t):
             raise ValueError("t_s: nan is not a time")
-        dt = 1.0 / self.step_hz
         # Step k -> k + 1 uses the inputs due at k / step_hz <= t, so the state after t is known.
         while self._k / self.step_hz <= t and math.isfinite(t):
             now = self._k / self.step_hz
             for source in self.sources:
                 source.poll(now)
-            self._prev = self._state
-            self._state = flight_model.step(self._state, self.controls(), dt, self.aircraft)
+            self.model.step(self.controls())
+            self._prev, self._eye = self._eye, self.model.eyepoint()
             self._k += 1
         f = min(max((t - (self._k - 1) / self.step_hz) * self.step_hz, 0.0), 1.0) if self._k else 1.0
-        return _blend(self._prev, self._state, f, self.aircraft)
+        return _blend(self._prev, self._eye, f)
 
     def status(self) -> tuple[list[SourceStatus], ModelStatus]:
         """Counters of every source, and the model's step count, speed and ground contact."""
-        s = self._state
-        return [src.status() for src in self.sources], ModelStatus(self._k, s.speed_mps, s.on_ground)
+        return ([src.status() for src in self.sources],
+                ModelStatus(self._k, self.model.speed_mps(), self.model.on_ground()))
 
     def close(self) -> None:
-        """Close every source."""
+        """Close every source, then the model."""
         for source in self.sources:
             source.close()
+        self.model.close()
 
 
-def _blend(a: flight_model.State, b: flight_model.State, f: float, aircraft: flight_model.Aircraft) -> Eyepoint:
-    """The eyepoint a fraction f of the way from state a to state b (heading on the short arc)."""
-    ha, pa, ra = a.attitude_deg(aircraft)
-    hb, pb, rb = b.attitude_deg(aircraft)
-    dh = (hb - ha + 180.0) % 360.0 - 180.0
-    h = (ha + f * dh) % 360.0
-    return Eyepoint.of(a.x_m + f * (b.x_m - a.x_m), a.y_m + f * (b.y_m - a.y_m), a.z_m + f * (b.z_m - a.z_m),
-                       0.0 if h >= 360.0 else h, pa + f * (pb - pa), ra + f * (rb - ra))
+def _blend(a: Eyepoint, b: Eyepoint, f: float) -> Eyepoint:
+    """The eyepoint a fraction f of the way from a to b (heading and roll on the short arc)."""
+    dh = (b.heading_deg - a.heading_deg + 180.0) % 360.0 - 180.0
+    h = (a.heading_deg + f * dh) % 360.0
+    dr = (b.roll_deg - a.roll_deg + 180.0) % 360.0 - 180.0
+    p = a.position + f * (b.position - a.position)
+    return Eyepoint.of(float(p[0]), float(p[1]), float(p[2]), 0.0 if h >= 360.0 else h,
+                       a.pitch_deg + f * (b.pitch_deg - a.pitch_deg), a.roll_deg + f * dr)

@@ -128,6 +128,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "slows the simulation")
     parser.add_argument("--duration", type=non_negative, default=20.0,
                         help="simulated seconds of the bundled flight to fly (default 20)")
+    parser.add_argument("--fdm", default=None, metavar="MODEL",
+                        help="instead of the bundled flight, a scripted take-off from the runway flown by this "
+                             "flight model: jsbsim (JSBSim's c172x), jsbsim:AIRCRAFT or point-mass "
+                             "(docs/host-flight-model.md; JSBSim needs pip install 'ig-rig[jsbsim]')")
     parser.add_argument("--record-every", type=every_or_auto, default=None,
                         help=f"write the stitched frame as PNG every N frames, or auto (default): about "
                              f"{_RECORDED_PER_S:g} per simulated second. Recording never holds the rig up: a frame "
@@ -447,6 +451,15 @@ def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
 
 def run(args: argparse.Namespace) -> int:
     """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
+    if args.fdm is not None:
+        from host_sim.fdm import parse_fdm
+        from host_sim.fdm.jsbsim_model import import_jsbsim
+        try:
+            if parse_fdm(args.fdm).name == "jsbsim":
+                import_jsbsim()  # before any process starts: one line, not a failed host's log
+        except ValueError as exc:
+            error("demo", exc)
+            return EXIT_BAD_INPUT
     prepared = prepare_rig("demo", args)
     if isinstance(prepared, int):
         return prepared
@@ -538,8 +551,9 @@ def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argpar
     compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
                                             "--record-every", str(record_every), "--exr-every", str(args.exr_every),
                                             "--once"])
+    fdm = ["--fdm", args.fdm] if args.fdm is not None else []
     procs.start("host", ["host", "--rig", str(rig_path), *host_pace_args(args.rate),
-                         "--duration", str(args.duration)])
+                         "--duration", str(args.duration), *fdm])
     return _watch(procs, compositor, rig.compositor_address, expected, stop, estimated=args.rate is None), rate
 
 
