@@ -68,3 +68,17 @@ def test_a_query_database_without_terrain_is_logged_once_and_in_the_status(caplo
     assert len([r for r in caplog.records if "holds no terrain" in r.getMessage()]) == 1
     status = host_pb2.CigiStatus(**s.status())
     assert "holds no terrain" in status.query_database and status.ownship.startswith(OWNSHIP_WAITING)
+
+
+def test_start_of_frame_keeps_the_old_hosts_version_until_the_new_host_speaks():
+    from host_sim.cigi.codec import V4_0, decode
+
+    s, _ = session(initial_pose=START)
+    send(s, ig_control(500), ownship())
+    s.begin_frame()
+    assert decode(s.start_of_frame([])[0], sender="ig").version.major == 3
+    s.begin_frame()  # the old host gone, the new one not yet heard: still 3.3
+    assert decode(s.start_of_frame([])[0], sender="ig").version.major == 3
+    send(s, ig_control(0), version=V4_0)  # a 4.0 host starting over
+    s.begin_frame()
+    assert decode(s.start_of_frame([])[0], sender="ig").version == V4_0
