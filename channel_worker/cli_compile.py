@@ -21,6 +21,7 @@ from typing import TextIO
 from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error, load_rig_or_report
 from services.rig.frame import ChannelSpec
 from services.rig.options import add_render_arguments, from_arguments
+from services.rig.rigfile import scene_path
 
 # Light: the pipeline (numba) is imported only when a compile runs.
 from .compile_jobs import (
@@ -47,7 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig compile`."""
     parser.add_argument("--scene", default=None,
                         help="scene JSON the workers will render (its terrain, haze, fog and clouds "
-                             "decide which kernels are needed); default: the bundled airfield")
+                             "decide which kernels are needed); default: the rig file's [scene] path, else "
+                             "the bundled airfield")
     parser.add_argument("--rig", default=None,
                         help="rig file whose [render] table the workers read (default: the bundled rig)")
     add_render_arguments(parser, renderer=True, with_range=True)
@@ -74,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         options = from_arguments(args, base=rig.render)
         if args.with_range is None:
             options = options.replace(with_range=False)
-        scene = args.scene or str(bundled_scene_path())
+        scene = scene_path(args.scene, rig, bundled_scene_path())
         database = load_scene(scene)
     except (SceneError, ValueError) as exc:
         error("compile", exc)

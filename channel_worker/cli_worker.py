@@ -30,7 +30,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="render the rig's N-th channel, counting from 0 in the file's order (a Kubernetes "
                             "StatefulSet passes its pod's ordinal)")
     parser.add_argument("--scene", default=None,
-                        help="scene JSON (docs/scene-format.md); default: the bundled airfield")
+                        help="scene JSON (docs/scene-format.md); default: the rig file's [scene] path, else the "
+                             "bundled airfield")
     add_render_arguments(parser)
     add_wire_arguments(parser, compositor=False)
     parser.add_argument("--once", action="store_true",
@@ -45,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     """
     from services.rig.cli_common import security_of
     from services.rig.grpc_util import configure_logging, stop_on_signals
-    from services.rig.rigfile import RigError, bind_address
+    from services.rig.rigfile import RigError, bind_address, scene_path
     from services.rig.threads import size_thread_pool
 
     configure_logging(args.verbose)
@@ -73,7 +74,8 @@ def run(args: argparse.Namespace) -> int:
         else:
             channel = rig.channel(args.channel)
         # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
-        database = load_scene(args.scene or bundled_scene_path())
+        # --scene over the rig file's [scene] (which host, workers and query service share).
+        database = load_scene(scene_path(args.scene, rig, bundled_scene_path()))
         security = security_of(rig)
         wire = wire_of(args, rig)
     except (RigError, SceneError, ValueError) as exc:

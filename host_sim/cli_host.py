@@ -251,7 +251,7 @@ def _cigi_source(args: argparse.Namespace, rig, security):
     query = rig.channel(spec.query_channel) if spec.query_channel else rig.channels[0]
     session = CigiSession(origin=spec.origin, channels={ch.view_id: ch.spec for ch in rig.channels},
                           mode=args.cigi_mode or spec.mode, stale_after_s=spec.stale_after_s, solar=sun_direction,
-                          announce=bool(spec.host))
+                          announce=bool(spec.host), initial_pose=spec.start_pose)
     client = QueryClient(query.address, origin=spec.origin, timeout_s=spec.query_timeout_s, security=security)
     endpoint = CigiEndpoint(session, listen, host_port=host_port, queries=client, host=spec.host)
     return endpoint, endpoint.frame_input, math.inf

@@ -332,13 +332,15 @@ def prepare_rig(command: str, args: argparse.Namespace) -> tuple[Rig, str] | int
     except ValueError as exc:
         error(command, exc)
         return EXIT_BAD_INPUT
-    if args.scene and not Path(args.scene).is_file():
-        error(command, f"--scene: {args.scene!r} is not a file")
+    # The scene: --scene, else the rig file's [scene] path, else the demo's terrain scene.
+    given, where = (args.scene, "--scene") if args.scene else (rig.scene, "[scene] path")
+    if given and not Path(given).is_file():
+        error(command, f"{where}: {given!r} is not a file")
         return EXIT_BAD_INPUT
     from channel_worker.pipeline.scene.load import SceneError, demo_scene_path, load_scene
 
-    scene_path = args.scene or str(demo_scene_path())
-    if not args.scene:
+    scene_path = given or str(demo_scene_path())
+    if not given:
         # Build the bundled terrain once here (a few seconds on first use) instead of in every
         # worker at once. A scene of the user's is checked by the workers, whose errors end
         # the run with their message.

@@ -10,7 +10,9 @@ reported through refused(cause, message) when the caller gave one.
 
 from __future__ import annotations
 
+import logging
 import math
+import threading
 from collections.abc import Callable, Sequence
 
 import grpc
@@ -27,6 +29,14 @@ from .sight import line_of_sight
 #: milliseconds (docs/cigi-queries.md), so a request cannot hold the worker past a frame.
 MAX_QUERIES = 1024
 
+log = logging.getLogger("ig.worker.query")
+
+#: Sent with every answer from a database without terrain (the flat airfield) and logged once:
+#: HOT and LOS over a CIGI origin away from its few polygons then come back invalid with no
+#: other sign of why (79 of 81 in one integrator's run).
+NO_TERRAIN = ("holds no terrain: heights and lines of sight meet only the scene's polygons (give the "
+              "workers a scene with terrain: the rig file's [scene] path or --scene)")
+
 #: Causes passed to refused(cause, message).
 LENGTHS = "lengths"
 TOO_MANY = "too_many"
@@ -39,6 +49,17 @@ class QueryServicer(query_pb2_grpc.QueryServiceServicer):
     def __init__(self, database: Database, *, refused: Callable[[str, str], None] | None = None) -> None:
         self._database = database
         self._refused = refused
+        #: "" or what the database lacks, sent with every answer (query.proto database_warning).
+        self.warning = "" if database.terrain is not None else NO_TERRAIN
+        self._warned = threading.Event()
+
+    def _note(self) -> str:
+        """The database's warning, logged at the first query (not at start: a rig that never
+        asks a query has nothing to be warned about)."""
+        if self.warning and not self._warned.is_set():
+            self._warned.set()
+            log.warning("query service: the scene database %s", self.warning)
+        return self.warning
 
     def HeightOfTerrain(self, request, context):
         along = len(request.up_x) or len(request.up_y) or len(request.up_z)
@@ -62,7 +83,8 @@ class QueryServicer(query_pb2_grpc.QueryServiceServicer):
         return query_pb2.HeightOfTerrainResponse(
             valid=heights.valid.tolist(), height_m=heights.height_m.tolist(),
             normal_x=heights.normal[:, 0].tolist(), normal_y=heights.normal[:, 1].tolist(),
-            normal_z=heights.normal[:, 2].tolist(), material=heights.material.tolist())
+            normal_z=heights.normal[:, 2].tolist(), material=heights.material.tolist(),
+            database_warning=self._note())
 
     def LineOfSight(self, request, context):
         fields = ("x0", "y0", "z0", "x1", "y1", "z1", "min_opacity")
@@ -81,7 +103,8 @@ class QueryServicer(query_pb2_grpc.QueryServiceServicer):
             hit=sight.hit.tolist(), range_m=sight.range_m.tolist(),
             x=sight.point[:, 0].tolist(), y=sight.point[:, 1].tolist(), z=sight.point[:, 2].tolist(),
             normal_x=sight.normal[:, 0].tolist(), normal_y=sight.normal[:, 1].tolist(),
-            normal_z=sight.normal[:, 2].tolist(), material=sight.material.tolist(), rgba=sight.rgba.tolist())
+            normal_z=sight.normal[:, 2].tolist(), material=sight.material.tolist(), rgba=sight.rgba.tolist(),
+            database_warning=self._note())
 
     def _check(self, request, fields: Sequence[str], context) -> None:
         """Refuse fields of unequal lengths or more than MAX_QUERIES queries."""

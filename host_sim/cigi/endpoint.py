@@ -77,6 +77,8 @@ class QueryClient:
         self._channel = channel or make_channel(address, security)
         self._stub = query_pb2_grpc.QueryServiceStub(self._channel)
         self.address = address
+        #: The last answer's database_warning (query.proto); None before any answer.
+        self.database_warning: str | None = None
 
     def close(self) -> None:
         self._channel.close()
@@ -119,6 +121,8 @@ class QueryClient:
                 log.warning("%s queries to %s failed: %s", kind, self.address, exc.code().name)
                 result = None
                 failed += len(part)
+            else:
+                self.database_warning = result.database_warning
             if kind == "height":
                 surfaces = self._surfaces(result, *lines) if result is not None else {}
                 for i, h_job in enumerate(part):
@@ -262,6 +266,11 @@ class CigiEndpoint:
                 log.warning("CIGI queries refused: %s", exc)
                 packets = [_invalid(j, self.session.origin) for j in jobs]
                 invalid, failed = len(packets), 0
+            if client.database_warning is not None:
+                # Told once in the log (by the session) and kept in CigiStatus.query_database.
+                warning = client.database_warning
+                self.session.query_database_is(
+                    f"the query worker {client.address}'s scene database {warning}" if warning else "")
         self.session.count_answers(len(packets), invalid, failed)
         with self._answers_lock:
             self._answers += packets

@@ -54,6 +54,10 @@ SYNC_BACKLOG = 4
 #: Messages waiting in asynchronous mode before the oldest are dropped.
 ASYNC_BACKLOG = 64
 
+#: CigiStatus.ownship: what the eyepoint follows (docs/cigi.md, "The ownship").
+OWNSHIP_WAITING = "waiting for the ownship"
+OWNSHIP_FOLLOWING = "following the ownship"
+
 #: Longest the ownship is extrapolated past the host's last pose, seconds: beyond, a late host
 #: would send the eye flying off along a stale velocity.
 MAX_EXTRAPOLATION_S = 0.1
@@ -113,6 +117,8 @@ class Counters:
     responses_deferred: int = 0
     responses_dropped: int = 0
     last_error: str = ""
+    #: What the query service said of its database ("": nothing wrong), e.g. that it holds no terrain.
+    query_database: str = ""
 
 
 @dataclass
@@ -135,12 +141,18 @@ class CigiSession:
             ignores Celestial Sphere Control's sun.
         announce: send Start of Frame before the host's first message too (in CIGI 3.3,
             little-endian), for hosts that wait for the IG to speak first.
+        initial_pose: WGS-84 (lat deg, lon deg, height m, heading, pitch, roll deg) rendered
+            while no ownship pose is known (before the host's first Entity Control or Entity
+            Position of entity 0, and after a restart or reset forgot it), so that a host that
+            only sends requests, or a CIGI 4.0 host without Entity Position, still gets a
+            picture; None: no frame until the ownship.
     """
 
     def __init__(self, *, origin: Origin, channels: Mapping[int, ChannelSpec], mode: str = "sync",
                  stale_after_s: float = 1.0, clock: Callable[[], float] = time.monotonic,
                  wall: Callable[[], float] = time.time,
-                 solar: Callable[..., tuple[float, float, float]] | None = None, announce: bool = False) -> None:
+                 solar: Callable[..., tuple[float, float, float]] | None = None, announce: bool = False,
+                 initial_pose: tuple[float, float, float, float, float, float] | None = None) -> None:
         if mode not in ("sync", "async"):
             raise ValueError(f"mode: {mode!r} is not 'sync' or 'async'")
         self.origin = origin
@@ -151,6 +163,7 @@ class CigiSession:
         self.wall = wall
         self.solar = solar
         self.announce = announce
+        self.initial = None if initial_pose is None else pose_of_geodetic(*initial_pose, origin).eyepoint()
         self.counters = Counters()
         self._lock = threading.Lock()
         self._inbox: deque[_Received] = deque()
@@ -245,6 +258,11 @@ class CigiSession:
         eyepoint = None
         if self.ig_mode != 0:
             eyepoint = self._ownship_eyepoint(now)
+        # No ownship yet: the initial pose, in operate or debug mode, and before the host's
+        # first message (its IG mode unknown): a rig that waits for entity 0 shows nothing to
+        # a host that only asks questions. In reset mode the channels hold their picture.
+        if eyepoint is None and (self.ig_mode != 0 or self.version is None):
+            eyepoint = self.initial
         views = tuple(self._view_messages())
         env = self._environment()
         return FrameInput(eyepoint=eyepoint, host_frame_number=self.last_host_frame, environment=env,
@@ -570,7 +588,25 @@ class CigiSession:
                 queries_failed=c.queries_failed, periodic_requests=len(self.periodic),
                 messages_dropped=c.messages_dropped, responses_deferred=c.responses_deferred,
                 responses_dropped=c.responses_dropped,
-                last_error=c.last_error)
+                last_error=c.last_error, ownship=self.ownship_state,
+                query_database=c.query_database)
+
+    @property
+    def ownship_state(self) -> str:
+        """"following the ownship" once entity 0 has a pose, else "waiting for the ownship"
+        (with what is rendered meanwhile)."""
+        if self._ownship_samples:
+            return OWNSHIP_FOLLOWING
+        return OWNSHIP_WAITING + (" (rendering the initial pose)" if self.initial is not None else " (no frame)")
+
+    def query_database_is(self, note: str) -> None:
+        """Record what the query service said of its database ("" : it holds terrain), from the
+        endpoint's query thread; logged once per change."""
+        with self._lock:
+            changed = note != self.counters.query_database
+            self.counters.query_database = note
+        if changed and note:
+            log.warning("CIGI queries: %s", note)
 
 
 def _host_frame(message: Message) -> int | None:

@@ -164,6 +164,29 @@ def local_to_world(hpr_deg: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray
     return hpr_of_matrix(tilt @ matrix(from_hpr(hpr)))
 
 
+def world_to_local(hpr_deg: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
+                   origin: tuple[float, float, float]) -> np.ndarray:
+    """The inverse of local_to_world: (n, 3) heading, pitch, roll degrees against local north
+    and the local horizontal at each position of attitudes (n, 3) in the world frame. An
+    attitude estimated from the world track is brought to the logged columns' frame so that
+    the two can be mixed angle by angle (track.build_track).
+
+    Raises:
+        ValueError: hpr_deg is not (n, 3) or lat_deg / lon_deg do not have its n.
+    """
+    hpr = np.asarray(hpr_deg, np.float64)
+    lat, lon = np.asarray(lat_deg, np.float64), np.asarray(lon_deg, np.float64)
+    if hpr.ndim != 2 or hpr.shape[1] != 3:
+        raise ValueError(f"hpr_deg: shape {hpr.shape}, need (n, 3)")
+    for name, a in (("lat_deg", lat), ("lon_deg", lon)):
+        if a.shape != hpr.shape[:1]:
+            raise ValueError(f"{name}: shape {a.shape}, need ({hpr.shape[0]},) like hpr_deg")
+    # (ECEF -> aircraft ENU) @ (origin ENU -> ECEF): local_to_world's tilt, transposed.
+    untilt = geodetic.enu_rotation(lat, lon) @ \
+        np.swapaxes(geodetic.enu_rotation(np.array(origin[0]), np.array(origin[1])), -1, -2)
+    return hpr_of_matrix(untilt @ matrix(from_hpr(hpr)))
+
+
 def continuous(q: np.ndarray) -> np.ndarray:
     """The quaternions (n, 4) with signs flipped so that neighbours are on the same hemisphere
     (q and -q are the same attitude; slerp between neighbours then takes the short way)."""

@@ -2,10 +2,13 @@
 
 A header row names the columns, in any order; `#` starts a comment line:
 
-    time_s, lat_deg, lon_deg, alt_m [, heading_deg, pitch_deg, roll_deg]     geodetic (WGS-84)
-    time_s, x_m, y_m, z_m [, heading_deg, pitch_deg, roll_deg]                world frame
+    time_s, lat_deg, lon_deg, alt_m [, heading_deg] [, pitch_deg] [, roll_deg]     geodetic (WGS-84)
+    time_s, x_m, y_m, z_m [, heading_deg] [, pitch_deg] [, roll_deg]                world frame
 
-Other columns are ignored. Each column is its own time series: recorders leave a cell empty
+Other columns are ignored. Each attitude column is optional on its own (an ADS-B-derived log
+has heading and roll but no pitch): a column the header lacks is a column without values,
+estimated from the track by build_track while the others keep their logged values.
+Each column is its own time series: recorders leave a cell empty
 when they did not sample that value, so an empty cell (or `nan`, as numpy writes one) is a
 missing value, filled later by interpolating that column alone (track.build_track). A row
 needs a time: without a readable one it is skipped. A cell that is not a number is counted
@@ -76,8 +79,7 @@ def read(path: Path) -> RawLog:
 
     Raises:
         ValueError: a binary file, no header, or a header without time_s and a full position triple, or
-            with only part of the attitude triple, or a position column without any value
-            (the message names the columns).
+            or a position column without any value (the message names the columns).
     """
     raw = RawLog()
     with open(path, newline="", encoding=_encoding(path), errors="replace") as f:
@@ -95,12 +97,10 @@ def read(path: Path) -> RawLog:
                              f"nor {', '.join(WORLD)}")
         if "time_s" not in columns:
             raise ValueError(f"{path.name}: header {_shown(columns)} has no time_s")
-        present = [c in columns for c in ATTITUDE]
-        if any(present) and not all(present):
-            raise ValueError(f"{path.name}: header has only part of {', '.join(ATTITUDE)}")
-        values = [*position, *(ATTITUDE if all(present) else ())]
-        raw.hpr = [] if all(present) else None
-        raw.columns = ("position", *(ATTITUDE if all(present) else ()))
+        present = tuple(c for c in ATTITUDE if c in columns)
+        values = [*position, *present]
+        raw.hpr = [] if present else None
+        raw.columns = ("position", *present)
         for line, row in rows:
             if not any(cell.strip() for cell in row):
                 continue
@@ -111,14 +111,14 @@ def read(path: Path) -> RawLog:
                 if text.lower() in ("", "nan"):
                     raw.problem("corrupt", f"line {line}: time_s = {text!r} (a row needs a time)")
                 continue
-            cells = [_cell(raw, row, columns[c], c, line) for c in values]
-            if raw.hpr is not None and math.isfinite(cells[3]):
-                cells[3] %= 360.0
+            cells = dict(zip(values, (_cell(raw, row, columns[c], c, line) for c in values), strict=True))
             raw.times.append(t)
             raw.lines.append(line)
-            raw.coords.append((cells[0], cells[1], cells[2]))
+            raw.coords.append((cells[position[0]], cells[position[1]], cells[position[2]]))
             if raw.hpr is not None:
-                raw.hpr.append((cells[3], cells[4], cells[5]))
+                # A column the header lacks is NaN in every record: no value, estimated.
+                h, p, r = (cells.get(c, math.nan) for c in ATTITUDE)
+                raw.hpr.append((h % 360.0 if math.isfinite(h) else h, p, r))
     for j, c in enumerate(position):
         if raw.times and not any(math.isfinite(p[j]) for p in raw.coords):
             raise ValueError(f"{path.name}: column {c} has no value in any row")

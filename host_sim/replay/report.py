@@ -1,8 +1,10 @@
 """What a replay made of a log: `ig host --replay LOG --report` (docs/replay-formats.md).
 
 Per log: records read, used, interpolated per column, dropped by cause; each column's
-coverage; the attitude source per segment (logged, estimated in the air, estimated on the
-ground) and the estimator's assumptions; the time span and the largest gap; and a plot of the
+coverage; per attitude column where its values came from (logged, estimated or mixed, with
+the records of each); the attitude source per segment (logged, estimated in the air,
+estimated on the ground, or column by column where they differ) and the estimator's
+assumptions; the time span and the largest gap; and a plot of the
 replayed track and attitude (the eyepoint the host would publish, sampled at PLOT_RATE_HZ)
 against the log's own records, so that a reader sees at a glance where the replay follows
 the log and where it had to fill in.
@@ -16,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .track import Track
+from .track import ATTITUDE, Track
 
 #: Rate at which the plot samples the replay, Hz: finer than any log's records (1-50 Hz), so
 #: the curve between records shows how the replay interpolates.
@@ -35,6 +37,7 @@ def replay_report(track: Track, *, path: str, format: str) -> dict[str, Any]:
     dropped = {cause: n for cause, n in track.problems.items() if n and cause != "gap"}
     dt = np.diff(track.t_s)
     k = int(np.argmax(dt))
+    columns = attitude_columns(track)
     return {
         "file": path,
         "format": format,
@@ -48,22 +51,65 @@ def replay_report(track: Track, *, path: str, format: str) -> dict[str, Any]:
         "start_time_s": float(track.start_time),
         "duration_s": float(track.duration_s),
         "largest_gap": {"seconds": float(dt[k]), "after_s": float(track.t_s[k])},
-        "attitude": ("estimated" if track.attitude_estimated else
-                     "logged, estimated across long dropouts" if track.assumptions else "logged"),
+        "attitude": _summary(track, columns),
+        "attitude_columns": columns,
         "attitude_segments": attitude_segments(track),
         "assumptions": list(track.assumptions),
         "notes": list(track.notes),
     }
 
 
+def attitude_columns(track: Track) -> dict[str, dict[str, Any]]:
+    """Per attitude column, where its values came from: "logged" (its own values, and cells
+    interpolated across short dropouts), "estimated" (from the track) or "mixed", with the
+    records of each kind."""
+    src = np.asarray(track.column_source)
+    out: dict[str, dict[str, Any]] = {}
+    for j, c in enumerate(ATTITUDE):
+        column = src[:, j] if src.shape == (len(track.t_s), 3) else np.array([], dtype=object)
+        logged = int(np.count_nonzero(column == "logged"))
+        filled = int(np.count_nonzero(column == "interpolated"))
+        estimated = int(np.count_nonzero((column == "air") | (column == "ground")))
+        kind = "estimated" if logged + filled == 0 else "logged" if estimated == 0 else "mixed"
+        out[c] = {"source": kind, "logged": logged, "interpolated": filled, "estimated": estimated}
+    return out
+
+
+def _summary(track: Track, columns: dict[str, dict[str, Any]]) -> str:
+    """The attitude's origin in a few words: logged, estimated, or which column came from where."""
+    if track.attitude_estimated:
+        return "estimated"
+    kinds = {where["source"] for where in columns.values()}
+    if kinds == {"logged"}:
+        return "logged"
+    if kinds == {"mixed"} or kinds == {"logged", "mixed"}:
+        return "logged, estimated across long dropouts"
+    return "per column: " + ", ".join(f"{c.removesuffix('_deg')} {where['source']}" for c, where in columns.items())
+
+
+def _described(key: tuple[str, ...]) -> str:
+    """The attitude source of a record: one name, or column by column where they differ."""
+    if len(key) == 1:
+        return SOURCES.get(key[0], key[0])
+    return ", ".join(f"{c.removesuffix('_deg')} {SOURCES.get(s, s)}" for c, s in zip(ATTITUDE, key, strict=True))
+
+
 def attitude_segments(track: Track) -> list[dict[str, Any]]:
-    """Runs of records with one attitude source: source, first and last time, records."""
-    src = np.asarray(track.attitude_source)
+    """Runs of records with one attitude source: source, first and last time, records. A
+    record whose columns differ ("mixed") is described column by column (a logged cell and
+    one interpolated across a short dropout count alike there)."""
+    cols = np.asarray(track.column_source)
+    src: list[tuple[str, ...]] = []
+    for i, s in enumerate(np.asarray(track.attitude_source)):
+        if s == "mixed" and cols.shape == (len(track.t_s), 3):
+            src.append(tuple("logged" if v == "interpolated" else str(v) for v in cols[i]))
+        else:
+            src.append((str(s),))
     out: list[dict[str, Any]] = []
     start = 0
     for i in range(1, len(src) + 1):
         if i == len(src) or src[i] != src[start]:
-            out.append({"source": SOURCES.get(str(src[start]), str(src[start])),
+            out.append({"source": _described(src[start]),
                         "from_s": float(track.t_s[start]), "to_s": float(track.t_s[i - 1]),
                         "records": i - start})
             start = i
@@ -87,6 +133,9 @@ def format_report(doc: dict[str, Any]) -> str:
     lines.append(f"  time span {doc['duration_s']:.1f} s from log time {doc['start_time_s']:.3f} s; "
                  f"largest gap {gap['seconds']:.2f} s after t = {gap['after_s']:.1f} s"
                  + (f" ({doc['gaps']} gaps bridged by straight lines)" if doc["gaps"] else ""))
+    for column, where in doc["attitude_columns"].items():
+        counts = ", ".join(f"{k} {where[k]}" for k in ("logged", "interpolated", "estimated") if where[k])
+        lines.append(f"  {column:<12} {where['source']}" + (f" ({counts})" if counts else ""))
     lines.append(f"  attitude {doc['attitude']}:")
     for seg in doc["attitude_segments"]:
         lines.append(f"    {seg['from_s']:9.1f} .. {seg['to_s']:9.1f} s  {seg['source']} "
@@ -138,7 +187,9 @@ def plot_replay(track: Track, out_png: str | Path, *, title: str = "") -> Path:
     if logged is not None:
         ok = np.isfinite(logged[:, 0])
         logged[ok, 0] = np.degrees(np.unwrap(np.radians(logged[ok, 0])))
-    ground = np.asarray(track.attitude_source) == "ground"
+    cols = np.asarray(track.column_source)
+    ground = ((cols == "ground").any(axis=1) if cols.shape == (len(track.t_s), 3)
+              else np.asarray(track.attitude_source) == "ground")
     for j, name in enumerate(("heading, deg", "pitch, deg", "roll, deg")):
         ax = axes[2 + j]
         ax.plot(times, hpr[:, j], "-", lw=1.0, label="replayed (world frame)")

@@ -158,7 +158,8 @@ class Track:
         quat: (n, 4) attitudes as quaternions (attitude.py), neighbours on one hemisphere.
         gap: (n - 1,) True where the interval after a record is a gap.
         tangent: (n, 3) velocity at each record for the Hermite curve, m/s.
-        attitude_estimated: the log had no attitude; it was estimated from the track.
+        attitude_estimated: the log had no attitude column with a value; the whole attitude was
+            estimated from the track.
         problems: counts by cause (PROBLEMS).
         notes: the first few problems.
         origin: the geodetic reference point (lat deg, lon deg, h m) of the world frame, or
@@ -176,7 +177,9 @@ class Track:
         attitude_source: (n,) per record "logged", "interpolated" (a cell filled across a
             short dropout), or estimated from the track "air" or "ground" (the estimator found
             a ground roll there): a log without attitude, or a dropout longer than a gap
-            (report.py).
+            (report.py); "mixed" where the columns differ (column_source says how).
+        column_source: (n, 3) the same per record and attitude column (heading, pitch, roll):
+            a column without any value is estimated while the others stay logged.
         assumptions: what the attitude estimate took for granted (empty when logged).
         merged: records merged into another record of the same time whose missing cells
             they held (two sensors logging at one time): neither used apart nor dropped.
@@ -197,6 +200,7 @@ class Track:
     interpolated: dict[str, int] = field(default_factory=dict)
     logged_hpr: np.ndarray | None = None
     attitude_source: np.ndarray = field(default_factory=lambda: np.array([], dtype=object))
+    column_source: np.ndarray = field(default_factory=lambda: np.empty((0, 3), dtype=object))
     assumptions: list[str] = field(default_factory=list)
     merged: int = 0
 
@@ -307,24 +311,32 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
     interpolated = {"position": int(np.count_nonzero(~own_position))}
     coords = np.stack([_fill(times, coords[:, j], circular=False) for j in range(3)], axis=1)
     logged = None
-    filled_for = np.zeros(len(times))  # per record: the longest attitude dropout it is filled across
+    # Per record and attitude column: the dropout its cell is filled across (0: its own value).
+    dropout = np.zeros((len(times), 3))
+    have = np.zeros(3, bool)  # the attitude columns with a value in some record used
+    own = np.zeros((len(times), 3), bool)
     if hpr is not None:
         own = np.isfinite(hpr)
+        have = np.asarray(own.any(axis=0))
         for j, c in enumerate(ATTITUDE):
-            coverage[c], interpolated[c] = float(np.mean(own[:, j])), int(np.count_nonzero(~own[:, j]))
-        if own.any(axis=0).all():
+            coverage[c] = float(np.mean(own[:, j]))
+        if have.any():
             logged = hpr.copy()
             logged[:, 0] %= 360.0
-            filled_for = np.max([_dropout(times, own[:, j]) for j in range(3)], axis=0)
+            # Each column on its own: one with values is filled across its short dropouts;
+            # one without (an ADS-B log has no pitch) is estimated below, the others kept.
+            dropout = np.stack([_dropout(times, own[:, j]) for j in range(3)], axis=1)
             hpr = np.stack([_fill(times, hpr[:, j], circular=_CIRCULAR[j]) for j in range(3)], axis=1)
-        else:  # a column with no value in any record used: the log's attitude is incomplete
-            empty = ", ".join(c for j, c in enumerate(ATTITUDE) if not own[:, j].any())
-            problem.notes.append(f"attitude: {empty} has no value in any record used; "
+            if not have.all():
+                empty = ", ".join(c for j, c in enumerate(ATTITUDE) if not have[j])
+                problem.notes.append(f"attitude: {empty} has no value in any record used; estimated "
+                                     f"from the track, the other attitude columns as logged")
+        else:
+            problem.notes.append(f"attitude: {', '.join(ATTITUDE)} have no value in any record used; "
                                  f"the attitude is estimated from the track")
             hpr = None
     for c in columns:  # a column the log names but that never had a value
         coverage.setdefault(c, 0.0)
-        interpolated.setdefault(c, 0)
 
     if raw.geodetic:
         origin = origin or (float(coords[0, 0]), float(coords[0, 1]), float(coords[0, 2]))
@@ -343,31 +355,53 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
     assumptions: list[str] = []
     # An attitude dropout longer than a position gap (an AHRS failure) is not interpolated:
     # holding or bridging it would freeze the picture through a turn; the track says more.
-    lost = filled_for > threshold
-    if hpr is None or lost.any():
+    # A column without any value is lost everywhere.
+    lost = (dropout > threshold) | ~have
+    if lost.any():
         est = attitude.estimate_with_report(t, position)
         assumptions = est.assumptions
         guessed = np.where(est.on_ground, "ground", "air").astype(object)
+    # Per record and column: "logged", "interpolated", or estimated "air" / "ground".
+    column_source = np.empty((len(t), 3), dtype=object)
     if hpr is None:
-        hpr, source = est.hpr, guessed
+        hpr = est.hpr
+        column_source[:] = guessed[:, None]
     else:
-        source = np.where(filled_for > 0.0, "interpolated", "logged").astype(object)
+        column_source[:] = np.where(dropout > 0.0, "interpolated", "logged")
+        for j, c in enumerate(ATTITUDE):
+            interpolated[c] = int(np.count_nonzero(~own[:, j] & ~lost[:, j]))
+        if lost.any():
+            # The estimate is in the world frame; the logged angles are against the local frame
+            # at the aircraft: the estimate joins them there, angle by angle.
+            local_est = est.hpr if not raw.geodetic or origin is None else \
+                attitude.world_to_local(est.hpr, coords[:, 0], coords[:, 1], origin)
+            hpr = np.where(lost, local_est, hpr)
+            column_source[lost] = np.broadcast_to(guessed[:, None], lost.shape)[lost]
         if raw.geodetic and origin is not None:  # (origin is set for every geodetic log)
             # Logged angles are against local north and the local horizontal at the aircraft;
             # the world is the tangent plane at the origin (5.4 degrees apart at 600 km).
             hpr = attitude.local_to_world(hpr, coords[:, 0], coords[:, 1], origin)
-        if lost.any():
-            hpr[lost], source[lost] = est.hpr[lost], guessed[lost]
-            spans = _runs(lost)
+        dropped = lost & have & ~own  # dropouts of columns that have values elsewhere
+        if dropped.any():
+            spans = _runs(np.asarray(dropped.any(axis=1)))
             problem.notes.append(
                 f"attitude: {len(spans)} dropout(s) longer than {threshold:.1f} s estimated from the track "
                 f"({', '.join(f'{t[a]:.1f}-{t[b]:.1f} s' for a, b in spans[:3])}"
                 f"{', ...' if len(spans) > 3 else ''})")
+    for c in ATTITUDE:
+        if c in columns:
+            interpolated.setdefault(c, 0)
+    # Per record: "logged" / "interpolated" when every column is logged (interpolated: some
+    # cell filled), the estimate's "air" / "ground" when every column is estimated, else "mixed".
+    family = np.where(column_source == "interpolated", "logged", column_source)
+    source = np.where((family == "logged").all(axis=1),
+                      np.where((column_source == "interpolated").any(axis=1), "interpolated", "logged"),
+                      np.where((family == family[:, :1]).all(axis=1), family[:, 0], "mixed")).astype(object)
     quat = attitude.continuous(attitude.from_hpr(hpr))
     track = Track(t, position, quat, gap, _tangents(t, position, gap), estimated, problem.counts, problem.notes,
                   origin, float(times[0]), records_read=max(raw.records_read, n_in), coverage=coverage,
                   interpolated=interpolated, logged_hpr=logged, attitude_source=source,
-                  assumptions=assumptions, merged=problem.merged)
+                  column_source=column_source, assumptions=assumptions, merged=problem.merged)
     for a in (track.t_s, track.position, track.quat, track.gap, track.tangent, track.logged_hpr):
         if a is not None:
             a.setflags(write=False)

@@ -151,6 +151,9 @@ class CigiSpec:
         configured: the rig file has a ``[cigi]`` table: the rig is meant to follow a CIGI
             host, so `ig compile` and the workers' warm-up prepare the query kernels (a rig
             without one pays for them only if a query ever comes).
+        initial_pose: WGS-84 latitude, longitude (degrees), height (metres), heading, pitch,
+            roll (degrees) of the eyepoint rendered until the host's first ownship message
+            (and after a restart or reset has forgotten it); None: start_pose's default.
     """
 
     listen: str = "127.0.0.1:8000"
@@ -163,6 +166,22 @@ class CigiSpec:
     query_timeout_s: float = 0.5
     host: str = ""
     configured: bool = False
+    initial_pose: tuple[float, float, float, float, float, float] | None = None
+
+    @property
+    def start_pose(self) -> tuple[float, float, float, float, float, float]:
+        """The pose rendered before the first ownship message: initial_pose, or
+        DEFAULT_INITIAL_HEIGHT_M above the origin looking north, level."""
+        if self.initial_pose is not None:
+            return self.initial_pose
+        lat, lon, h = self.origin
+        return (lat, lon, h + DEFAULT_INITIAL_HEIGHT_M, 0.0, 0.0, 0.0)
+
+
+#: Height of the default initial pose above cigi.origin, metres: the height `ig cigi-host`'s
+#: built-in script flies at, high enough to see the ground around the origin rather than
+#: the inside of a hill, low enough to see it in detail.
+DEFAULT_INITIAL_HEIGHT_M = 300.0
 
 
 #: How the host follows another simulator's pose stream between its datagrams (the ``[simhost]``
@@ -234,6 +253,9 @@ class Rig:
     cigi: CigiSpec = field(default_factory=CigiSpec)
     wire: WireSpec = field(default_factory=WireSpec)
     simhost: SimHostSpec = field(default_factory=SimHostSpec)
+    #: The scene every process of the rig loads (``[scene] path``, made absolute against the
+    #: rig file's folder); "": each command's own default. A --scene flag overrides it.
+    scene: str = ""
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -295,7 +317,7 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
 
     for key in doc:
         if key not in {"host", "compositor", "channels", "render", "sync", "blend", "tls", "cigi",
-                       "simhost"}:
+                       "simhost", "scene"}:
             raise fail(key, "unknown key")
     try:
         render = RenderOptions.from_mapping(doc.get("render", {}), where="render")
@@ -385,8 +407,33 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         "tolerance_deg": (float, 0.0, 10.0)}, fail))
     tls = _tls(doc.get("tls", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
     cigi = _cigi(doc, tuple(c.name for c in out), fail)
+    scene = _scene(doc.get("scene", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
     return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi, wire,
-               _simhost(doc, fail))
+               _simhost(doc, fail), scene)
+
+
+def scene_path(flag: str | None, rig: Rig, default: str | Path) -> str:
+    """The scene a process of the rig loads: the --scene flag, else the rig file's ``[scene]
+    path`` (so that host, workers and query service agree without flags), else default (the
+    command's own: the bundled airfield for a worker, the terrain scene for `ig demo`)."""
+    return str(flag or rig.scene or default)
+
+
+def _scene(table: Any, base: Path, fail) -> str:
+    """The ``[scene]`` table's path, absolute (relative paths against the rig file's folder,
+    so that every machine reading the rig file from its own checkout finds the scene); ""
+    without one. The file is not opened here: the processes that load it name its errors."""
+    if not isinstance(table, dict):
+        raise fail("scene", f"{table!r} is not a table")
+    for key in table:
+        if key != "path":
+            raise fail(f"scene.{key}", "unknown key (known: path)")
+    if "path" not in table:
+        return ""
+    value = table["path"]
+    if not isinstance(value, str) or not value.strip():
+        raise fail("scene.path", f"{value!r} is not a file path")
+    return value if Path(value).is_absolute() else str(base / value)
 
 
 def _wire(table: dict[str, Any], fail) -> WireSpec:
@@ -406,7 +453,8 @@ def _cigi(doc: dict[str, Any], channels: tuple[str, ...], fail) -> CigiSpec:
     table = doc.get("cigi", {})
     if not isinstance(table, dict):
         raise fail("cigi", f"{table!r} is not a table")
-    known = ("listen", "host_port", "origin", "query_channel", "mode", "stale_after_s", "query_timeout_s", "host")
+    known = ("listen", "host_port", "origin", "query_channel", "mode", "stale_after_s", "query_timeout_s", "host",
+             "initial_pose")
     for key in table:
         if key not in known:
             raise fail(f"cigi.{key}", f"unknown key (known: {', '.join(known)})")
@@ -418,6 +466,15 @@ def _cigi(doc: dict[str, Any], channels: tuple[str, ...], fail) -> CigiSpec:
         if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
             raise fail("cigi.host_port", f"{port!r} is not a port in [1, 65535]")
         out["host_port"] = port
+    if "initial_pose" in table:
+        pose = table["initial_pose"]
+        ok = (isinstance(pose, list) and len(pose) == 6
+              and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in pose))
+        if not ok or not (abs(pose[0]) <= 90 and abs(pose[1]) <= 180 and -500 <= pose[2] <= 100_000
+                          and abs(pose[4]) <= 90 and abs(pose[5]) <= 180):
+            raise fail("cigi.initial_pose", f"{pose!r} is not [latitude within +-90, longitude within +-180, "
+                       "height in -500..100000 m, heading, pitch within +-90, roll within +-180] (degrees)")
+        out["initial_pose"] = tuple(float(v) for v in pose)
     if "origin" in table:
         origin = table["origin"]
         ok = (isinstance(origin, list) and len(origin) == 3
@@ -577,6 +634,8 @@ def rig_toml(rig: Rig) -> str:
         table = {k: v for k, v in asdict(spec).items() if getattr(default, k) != v and k != "configured"}
         if table or getattr(spec, "configured", False):
             lines.append(f"[{name}]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in table.items()))
+    if rig.scene:
+        lines.append(f"[scene]\npath = {_toml_value(rig.scene)}\n")
     for ch in rig.channels:
         s = ch.spec
         lines.append(

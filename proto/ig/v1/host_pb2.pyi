@@ -128,7 +128,7 @@ class GetHostStatusResponse(_message.Message):
     def __init__(self, run_id: _Optional[str] = ..., frames_published: _Optional[int] = ..., eyepoints_rejected: _Optional[int] = ..., ack_timeouts: _Optional[_Mapping[str, int]] = ..., ack_failures: _Optional[_Mapping[str, int]] = ..., queue_drops: _Optional[_Mapping[str, int]] = ..., subscriptions_rejected: _Optional[int] = ..., subscribers: _Optional[_Iterable[str]] = ..., finished: _Optional[bool] = ..., last_error: _Optional[str] = ..., channel_absent: _Optional[_Mapping[str, int]] = ..., eyepoint_source: _Optional[str] = ..., inputs: _Optional[_Iterable[_Union[InputSourceStatus, _Mapping]]] = ..., replay: _Optional[_Union[ReplayStatus, _Mapping]] = ..., flight_model: _Optional[_Union[FlightModelStatus, _Mapping]] = ..., requests_refused: _Optional[_Mapping[str, int]] = ..., late_acks: _Optional[_Mapping[str, int]] = ..., cigi: _Optional[_Union[CigiStatus, _Mapping]] = ..., runs: _Optional[int] = ...) -> None: ...
 
 class CigiStatus(_message.Message):
-    __slots__ = ("listen", "host_address", "version", "byte_order", "mode", "ig_mode", "messages", "refused", "packets", "unused", "skipped", "last_host_frame", "ig_frames", "stale", "stale_events", "restarts", "entities", "queries_answered", "queries_invalid", "queries_failed", "periodic_requests", "messages_dropped", "responses_deferred", "last_error", "responses_dropped")
+    __slots__ = ("listen", "host_address", "version", "byte_order", "mode", "ig_mode", "messages", "refused", "packets", "unused", "skipped", "last_host_frame", "ig_frames", "stale", "stale_events", "restarts", "entities", "queries_answered", "queries_invalid", "queries_failed", "periodic_requests", "messages_dropped", "responses_deferred", "last_error", "responses_dropped", "ownship", "query_database")
     class RefusedEntry(_message.Message):
         __slots__ = ("key", "value")
         KEY_FIELD_NUMBER: _ClassVar[int]
@@ -175,6 +175,8 @@ class CigiStatus(_message.Message):
     RESPONSES_DEFERRED_FIELD_NUMBER: _ClassVar[int]
     LAST_ERROR_FIELD_NUMBER: _ClassVar[int]
     RESPONSES_DROPPED_FIELD_NUMBER: _ClassVar[int]
+    OWNSHIP_FIELD_NUMBER: _ClassVar[int]
+    QUERY_DATABASE_FIELD_NUMBER: _ClassVar[int]
     listen: str
     host_address: str
     version: str
@@ -200,7 +202,9 @@ class CigiStatus(_message.Message):
     responses_deferred: int
     last_error: str
     responses_dropped: int
-    def __init__(self, listen: _Optional[str] = ..., host_address: _Optional[str] = ..., version: _Optional[str] = ..., byte_order: _Optional[str] = ..., mode: _Optional[str] = ..., ig_mode: _Optional[str] = ..., messages: _Optional[int] = ..., refused: _Optional[_Mapping[str, int]] = ..., packets: _Optional[_Mapping[str, int]] = ..., unused: _Optional[_Mapping[str, int]] = ..., skipped: _Optional[int] = ..., last_host_frame: _Optional[int] = ..., ig_frames: _Optional[int] = ..., stale: _Optional[bool] = ..., stale_events: _Optional[int] = ..., restarts: _Optional[int] = ..., entities: _Optional[int] = ..., queries_answered: _Optional[int] = ..., queries_invalid: _Optional[int] = ..., queries_failed: _Optional[int] = ..., periodic_requests: _Optional[int] = ..., messages_dropped: _Optional[int] = ..., responses_deferred: _Optional[int] = ..., last_error: _Optional[str] = ..., responses_dropped: _Optional[int] = ...) -> None: ...
+    ownship: str
+    query_database: str
+    def __init__(self, listen: _Optional[str] = ..., host_address: _Optional[str] = ..., version: _Optional[str] = ..., byte_order: _Optional[str] = ..., mode: _Optional[str] = ..., ig_mode: _Optional[str] = ..., messages: _Optional[int] = ..., refused: _Optional[_Mapping[str, int]] = ..., packets: _Optional[_Mapping[str, int]] = ..., unused: _Optional[_Mapping[str, int]] = ..., skipped: _Optional[int] = ..., last_host_frame: _Optional[int] = ..., ig_frames: _Optional[int] = ..., stale: _Optional[bool] = ..., stale_events: _Optional[int] = ..., restarts: _Optional[int] = ..., entities: _Optional[int] = ..., queries_answered: _Optional[int] = ..., queries_invalid: _Optional[int] = ..., queries_failed: _Optional[int] = ..., periodic_requests: _Optional[int] = ..., messages_dropped: _Optional[int] = ..., responses_deferred: _Optional[int] = ..., last_error: _Optional[str] = ..., responses_dropped: _Optional[int] = ..., ownship: _Optional[str] = ..., query_database: _Optional[str] = ...) -> None: ...
 
 class InputSourceStatus(_message.Message):
     __slots__ = ("name", "accepted", "rejected", "stale", "last_input_age_s", "last_rejection", "counters", "values")

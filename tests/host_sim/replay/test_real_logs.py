@@ -63,12 +63,18 @@ def test_empty_cells_are_interpolated_per_column_and_the_rest_of_the_row_is_kept
     assert track.logged_hpr[5, 2] == pytest.approx(-17.0)
 
 
-def test_a_wholly_empty_attitude_column_means_no_attitude(tmp_path):
+def test_a_wholly_empty_attitude_column_is_estimated_alone(tmp_path):
+    # Pitch empty in every row: heading and roll stay as logged, only pitch is estimated.
     rows = flight(20)
     track, _ = load_track(write_lines(tmp_path / "f.csv", csv_cells(rows, {(i, 5) for i in range(20)})))
-    assert track.attitude_estimated and track.logged_hpr is None
+    assert not track.attitude_estimated and track.logged_hpr is not None
     assert track.coverage["pitch_deg"] == 0.0 and track.coverage["heading_deg"] == 1.0
     assert any("pitch_deg has no value" in n for n in track.notes)
+    assert (track.column_source[:, 0] == "logged").all() and (track.column_source[:, 2] == "logged").all()
+    assert set(track.column_source[:, 1]) <= {"air", "ground"}
+    assert set(track.attitude_source) == {"mixed"}
+    e = track.sample(5.0)
+    assert (e.heading_deg, e.roll_deg) == pytest.approx((rows[5][4], -17.0), abs=0.05)
 
 
 def test_rows_without_a_position_beyond_the_first_and_last_fix_are_counted(tmp_path):
