@@ -67,6 +67,11 @@ _UNTHROTTLED_HZ = 1000.0
 AUTO_RATE_MAX_HZ = 60.0
 #: The rate when the calibration measured nothing, Hz.
 FALLBACK_RATE_HZ = 15.0
+#: Simulated seconds `ig demo` flies by default: the bundled flight's take-off and climb-out,
+#: and a scripted take-off of a flight model (--fdm), which lifts off at about 27 s (JSBSim's
+#: c172x, docs/host-flight-model.md) and is then shown climbing.
+FLIGHT_S = 20.0
+TAKEOFF_S = 40.0
 #: PNGs per simulated second of the demo with --record-every auto. A 3072 x 768 PNG takes
 #: 0.2 s of a core to encode: recording every frame at 3 Hz would take a quarter of a 2-core
 #: machine from the renderers (the recorder never holds the rig up, but it shares the CPU).
@@ -126,8 +131,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"acknowledged the last (at most {AUTO_RATE_MAX_HZ:g} Hz), the flight in real time; "
                              "or a fixed host frame rate, Hz, frame-locked: a rate above what the rig renders "
                              "slows the simulation")
-    parser.add_argument("--duration", type=non_negative, default=20.0,
-                        help="simulated seconds of the bundled flight to fly (default 20)")
+    parser.add_argument("--duration", type=non_negative, default=None,
+                        help=f"simulated seconds to fly (default {FLIGHT_S:g} of the bundled flight; "
+                             f"{TAKEOFF_S:g} with --fdm: the scripted take-off lifts off at about 27 s, then climbs)")
     parser.add_argument("--fdm", default=None, metavar="MODEL",
                         help="instead of the bundled flight, a scripted take-off from the runway flown by this "
                              "flight model: jsbsim (JSBSim's c172x), jsbsim:AIRCRAFT or point-mass "
@@ -453,6 +459,8 @@ def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
 
 def run(args: argparse.Namespace) -> int:
     """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
+    if args.duration is None:
+        args.duration = FLIGHT_S if args.fdm is None else TAKEOFF_S
     if args.fdm is not None:
         from host_sim.fdm import parse_fdm
         from host_sim.fdm.jsbsim_model import import_jsbsim
