@@ -59,9 +59,13 @@ def read(path: Path) -> RawLog:
     att = data.get("vehicle_attitude")
     if att is not None and all(k in att for k in ("timestamp", "q[0]", "q[1]", "q[2]", "q[3]")) \
             and len(att["timestamp"]) >= 1:
-        at = att["timestamp"].astype(np.float64) * 1e-6
-        q = np.stack([att[f"q[{k}]"] for k in range(4)], axis=-1).astype(np.float64)
-        good = np.isfinite(q).all(axis=1) & (np.linalg.norm(q, axis=1) > 0.5)
+        # A damaged format definition can give the fields other types, whose values become
+        # NaN or overflow on the way to float64 (numpy warns "invalid value encountered in
+        # cast"): those samples are dropped by `good` below, so the warnings say nothing more.
+        with np.errstate(invalid="ignore", over="ignore"):
+            at = att["timestamp"].astype(np.float64) * 1e-6
+            q = np.stack([att[f"q[{k}]"] for k in range(4)], axis=-1).astype(np.float64)
+            good = np.isfinite(q).all(axis=1) & np.isfinite(at) & (np.linalg.norm(q, axis=1) > 0.5)
         at, q = at[good], q[good]
         order = np.argsort(at, kind="stable")
         at, q = at[order], q[order]
