@@ -167,12 +167,20 @@ def clear_air(clouds, cols, rows):
     return True
 
 
+#: Margin of _texel_box, relative to the coordinates' size: a pixel's coordinate interpolated
+#: between the corners can round past them by a few ulps (corners -1 and -5e-324 interpolate
+#: to -0.0, whose floor is a row above the corners'), and the box must still hold it.
+_BOX_MARGIN = 1e-9
+
+
 @njit(cache=True, inline="always")
 def _texel_box(corners):
-    """The lowest and highest texel index (floor) of the four corner coordinates."""
+    """The lowest and highest texel index (floor) the four corner coordinates and any point
+    interpolated between them (rounding included) can have."""
     lo = min(min(corners[0], corners[1]), min(corners[2], corners[3]))
     hi = max(max(corners[0], corners[1]), max(corners[2], corners[3]))
-    return int(math.floor(lo)), int(math.floor(hi))
+    margin = _BOX_MARGIN * (1.0 + max(abs(lo), abs(hi)))
+    return int(math.floor(lo - margin)), int(math.floor(hi + margin))
 
 
 @njit(cache=True, inline="always")

@@ -53,6 +53,16 @@ def test_a_block_that_can_read_a_cloudy_texel_is_never_clear(cols, rows, full):
         assert not clear_air(_image(cloudy, full), cols, rows), (col, row)
 
 
+def test_a_corner_a_hair_below_a_texel_row_still_guards_the_row_above():
+    # Found by the property above in one CI run: rows -1 and -5e-324 interpolate to -0.0
+    # inside the block, whose pixels then read rows 0 and 1; the box of the corners' floors
+    # alone ended at row 0.
+    cloudy = np.zeros((NCOLS, NROWS, CLOUD_CHANNELS), np.float32)
+    cloudy[0, 1, 3] = 0.25
+    assert (0, 1) in _texels_read((0.0, 0.0, 0.0, 0.0), (-1.0, -1.0, -5e-324, -5e-324), False)
+    assert not clear_air(_image(cloudy, False), (0.0, 0.0, 0.0, 0.0), (-1.0, -1.0, -5e-324, -5e-324))
+
+
 def test_a_small_block_under_clear_air_is_clear_and_a_wide_one_is_left_to_its_pixels():
     empty = _image(np.zeros((NCOLS, NROWS, CLOUD_CHANNELS), np.float32), False)
     assert clear_air(empty, (1.0, 2.0, 1.0, 2.0), (2.0, 2.0, 3.0, 3.0))
