@@ -11,7 +11,6 @@ compiled before (same sources, scene and options) only loads them, in about a se
 from __future__ import annotations
 
 import argparse
-import os
 import queue
 import sys
 import threading
@@ -22,6 +21,7 @@ from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, error,
 from services.rig.frame import ChannelSpec
 from services.rig.options import add_render_arguments, from_arguments
 from services.rig.rigfile import scene_path
+from services.rig.threads import usable_cores
 
 # Light: the pipeline (numba) is imported only when a compile runs.
 from .compile_jobs import (
@@ -53,9 +53,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rig", default=None,
                         help="rig file whose [render] table the workers read (default: the bundled rig)")
     add_render_arguments(parser, renderer=True, with_range=True)
-    parser.add_argument("--jobs", type=_jobs, default=_cores(),
+    parser.add_argument("--jobs", type=_jobs, default=usable_cores(),
                         help="cores to compile on (default: this machine's, "
-                             f"{_cores()}): from 2, the kernel groups each compile in a process of "
+                             f"{usable_cores()}): from 2, the kernel groups each compile in a process of "
                              "their own, all at once (three for a scene with terrain); 1 compiles "
                              "in this process, one kernel at a time")
     parser.add_argument("--prune", action="store_true",
@@ -232,11 +232,6 @@ def _short(name: str) -> str:
     return f"{module.rpartition('.')[2]}.{qualname}" if module else name
 
 
-def _cores() -> int:
-    """The cores this process may run on (its CPU affinity, where the OS tells it)."""
-    if hasattr(os, "sched_getaffinity"):
-        return max(1, len(os.sched_getaffinity(0)))
-    return os.cpu_count() or 1
 
 
 #: Most --jobs: as many as RenderOptions.threads allows (more cores than any machine has).

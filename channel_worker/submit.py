@@ -14,7 +14,7 @@ import numpy as np
 from numba import njit, prange
 
 from ig.v1 import compositor_pb2
-from services.rig.colour import SRGB8_TABLE, linear_to_srgb8
+from services.rig.colour import SRGB8_TABLE, linear_to_srgb8, srgb8_of
 from services.rig.frame import ChannelSpec
 from services.rig.grpc_util import RPC_DEADLINE_S
 from services.rig.rigfile import WireSpec, check_wire_format
@@ -150,18 +150,10 @@ def encode_srgb8(rgb: np.ndarray, out: np.ndarray) -> None:
 
 @njit(cache=True, parallel=True)
 def _srgb8_rows(rgb, table, out):
-    """services.rig.colour's encoder (clip, quantise to the table's 16 bits, look up), a row
-    per task."""
-    top = table.shape[0] - 1
+    """services.rig.colour's encoder (srgb8_of), a row per task."""
     for y in prange(rgb.shape[0]):
         for i in range(rgb.shape[1]):
-            v = rgb[y, i]
-            if not v > 0.0:  # also NaN
-                out[y, i] = table[0]
-            elif v >= 1.0:
-                out[y, i] = table[top]
-            else:
-                out[y, i] = table[int(v * np.float32(top) + np.float32(0.5))]
+            out[y, i] = srgb8_of(rgb[y, i], table)
 
 
 def warm_encoders() -> None:

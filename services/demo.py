@@ -51,7 +51,7 @@ from services.rig.cli_common import (
 )
 from services.rig.grpc_util import RPC_DEADLINE_S, make_channel
 from services.rig.rigfile import Rig, TlsSpec, rig_toml
-from services.rig.threads import share_of_cores, usable_cores
+from services.rig.threads import check_threads, share_of_cores
 
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
@@ -369,13 +369,8 @@ def worker_threads(rig: Rig, flag: int | None) -> int:
         ValueError: a count this machine cannot give every worker, naming where it came from.
     """
     setting, threads = ("--threads", flag) if flag is not None else ("[render] threads", rig.render.threads)
-    if threads == 0:
-        return share_of_cores(len(rig.channels))
-    cores = usable_cores()
-    if threads < 0 or threads > cores:
-        raise ValueError(f"{setting}: {threads} is not in 1..{cores}, the cores this machine has (0: share them "
-                         "among the workers)")
-    return threads
+    check_threads(threads, setting)
+    return threads or share_of_cores(len(rig.channels))
 
 
 Failure = tuple[str, int]

@@ -151,16 +151,7 @@ def local_to_world(hpr_deg: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray
     Raises:
         ValueError: hpr_deg is not (n, 3) or lat_deg / lon_deg do not have its n.
     """
-    hpr = np.asarray(hpr_deg, np.float64)
-    lat, lon = np.asarray(lat_deg, np.float64), np.asarray(lon_deg, np.float64)
-    if hpr.ndim != 2 or hpr.shape[1] != 3:
-        raise ValueError(f"hpr_deg: shape {hpr.shape}, need (n, 3)")
-    for name, a in (("lat_deg", lat), ("lon_deg", lon)):
-        if a.shape != hpr.shape[:1]:
-            raise ValueError(f"{name}: shape {a.shape}, need ({hpr.shape[0]},) like hpr_deg")
-    # (ECEF -> origin ENU) @ (aircraft ENU -> ECEF): the transpose of a rotation is its inverse.
-    tilt = geodetic.enu_rotation(np.array(origin[0]), np.array(origin[1])) @ \
-        np.swapaxes(geodetic.enu_rotation(lat, lon), -1, -2)
+    hpr, tilt = _tilt(hpr_deg, lat_deg, lon_deg, origin)
     return hpr_of_matrix(tilt @ matrix(from_hpr(hpr)))
 
 
@@ -174,6 +165,15 @@ def world_to_local(hpr_deg: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray
     Raises:
         ValueError: hpr_deg is not (n, 3) or lat_deg / lon_deg do not have its n.
     """
+    hpr, tilt = _tilt(hpr_deg, lat_deg, lon_deg, origin)
+    # The inverse tilt is its transpose (a rotation).
+    return hpr_of_matrix(np.swapaxes(tilt, -1, -2) @ matrix(from_hpr(hpr)))
+
+
+def _tilt(hpr_deg: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray,
+          origin: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(hpr (n, 3) float64, the rotations (n, 3, 3) from the ENU frame at each position to the
+    origin's), after checking the shapes (the Raises of local_to_world)."""
     hpr = np.asarray(hpr_deg, np.float64)
     lat, lon = np.asarray(lat_deg, np.float64), np.asarray(lon_deg, np.float64)
     if hpr.ndim != 2 or hpr.shape[1] != 3:
@@ -181,10 +181,10 @@ def world_to_local(hpr_deg: np.ndarray, lat_deg: np.ndarray, lon_deg: np.ndarray
     for name, a in (("lat_deg", lat), ("lon_deg", lon)):
         if a.shape != hpr.shape[:1]:
             raise ValueError(f"{name}: shape {a.shape}, need ({hpr.shape[0]},) like hpr_deg")
-    # (ECEF -> aircraft ENU) @ (origin ENU -> ECEF): local_to_world's tilt, transposed.
-    untilt = geodetic.enu_rotation(lat, lon) @ \
-        np.swapaxes(geodetic.enu_rotation(np.array(origin[0]), np.array(origin[1])), -1, -2)
-    return hpr_of_matrix(untilt @ matrix(from_hpr(hpr)))
+    # (ECEF -> origin ENU) @ (aircraft ENU -> ECEF): the transpose of a rotation is its inverse.
+    tilt = geodetic.enu_rotation(np.array(origin[0]), np.array(origin[1])) @ \
+        np.swapaxes(geodetic.enu_rotation(lat, lon), -1, -2)
+    return hpr, tilt
 
 
 def continuous(q: np.ndarray) -> np.ndarray:

@@ -49,20 +49,25 @@ def linear_to_srgb8(rgb: np.ndarray, out: np.ndarray | None = None) -> np.ndarra
     return out
 
 
+@njit(cache=True, inline="always")
+def srgb8_of(v, table):
+    """One linear value's sRGB byte: clipped to [0, 1] (NaN: 0), quantised to the table's
+    16 bits, looked up (every encoder of the project, serial or parallel, uses this)."""
+    top = table.shape[0] - 1
+    if not v > 0.0:  # also NaN
+        return table[0]
+    if v >= 1.0:
+        return table[top]
+    return table[int(v * np.float32(top) + np.float32(0.5))]
+
+
 # nogil: a worker encodes while its receiver thread takes the host's next frame.
 @njit(cache=True, nogil=True)
 def _encode_kernel(c, lut, out):
     """One pass of clip, quantise and table look-up (the numpy chain of the same took ~10 x
     longer on a stitched 3072 x 768 frame, on the compositor's critical path)."""
-    top = lut.shape[0] - 1
     for i in range(c.shape[0]):
-        v = c[i]
-        if not v > 0.0:  # also NaN
-            out[i] = lut[0]
-        elif v >= 1.0:
-            out[i] = lut[top]
-        else:
-            out[i] = lut[int(v * np.float32(top) + np.float32(0.5))]
+        out[i] = srgb8_of(c[i], lut)
 
 
 def srgb8_to_linear(srgb: np.ndarray) -> np.ndarray:

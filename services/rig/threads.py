@@ -31,6 +31,23 @@ def share_of_cores(processes: int) -> int:
     return max(1, usable_cores() // max(1, processes))
 
 
+def check_threads(threads: int, setting: str) -> int:
+    """The usable cores, after checking that `threads` (0: all of them) is a count this
+    machine can honour.
+
+    Raises:
+        ValueError: threads is negative or more than the usable cores, naming setting.
+    """
+    cores = usable_cores()
+    if threads < 0:
+        raise ValueError(f"{setting}: {threads} is negative (0 takes every core)")
+    if threads > cores:
+        # More threads than cores only time-slice: every parallel loop then waits for its
+        # slowest, descheduled thread, and the frame is slower than with one per core.
+        raise ValueError(f"{setting}: {threads} is more than the {cores} cores this process may use")
+    return cores
+
+
 def size_thread_pool(threads: int, *, setting: str = "[render] threads") -> int:
     """Fix numba's pool for `threads` threads and return its size.
 
@@ -43,13 +60,7 @@ def size_thread_pool(threads: int, *, setting: str = "[render] threads") -> int:
         ValueError: threads is negative, more than the usable cores, or more than the pool of
             a numba already started (its NUMBA_NUM_THREADS) in this process.
     """
-    cores = usable_cores()
-    if threads < 0:
-        raise ValueError(f"{setting}: {threads} is negative (0 takes every core)")
-    if threads > cores:
-        # More threads than cores only time-slice: every parallel loop then waits for its
-        # slowest, descheduled thread, and the frame is slower than with one per core.
-        raise ValueError(f"{setting}: {threads} is more than the {cores} cores this process may use")
+    cores = check_threads(threads, setting)
     wanted = threads or _environment_threads(cores)
     if "numba" in sys.modules:
         import numba  # already loaded: the pool it was configured with is the limit

@@ -24,6 +24,8 @@ def _in_fresh_process(code: str, env: dict[str, str] | None = None) -> subproces
 
 
 def test_the_pool_numba_starts_is_the_count_asked_for():
+    if usable_cores() < 2:
+        pytest.skip("one usable core: a pool of 2 would be refused")
     # An inherited NUMBA_NUM_THREADS=1 (a shell's, a test harness's) is replaced by the setting.
     result = _in_fresh_process(
         "from services.rig.threads import size_thread_pool\n"
@@ -31,8 +33,6 @@ def test_the_pool_numba_starts_is_the_count_asked_for():
         "import numba\n"
         "print(numba.config.NUMBA_NUM_THREADS, numba.get_num_threads())\n",
         env={"NUMBA_NUM_THREADS": "1"})
-    if usable_cores() < 2:
-        pytest.skip("one usable core")
     assert result.returncode == 0, result.stderr
     assert result.stdout.split() == ["2", "2", "2"]
 
@@ -82,7 +82,7 @@ def test_demo_workers_share_the_cores_unless_told():
     rig = load_rig(default_rig_path())
     assert worker_threads(rig, None) == share_of_cores(len(rig.channels))
     assert worker_threads(rig, 1) == 1
-    with pytest.raises(ValueError, match=rf"^--threads: {usable_cores() + 1} is not in 1\.\.{usable_cores()}"):
+    with pytest.raises(ValueError, match=rf"^--threads: {usable_cores() + 1} is more than the {usable_cores()} cores"):
         worker_threads(rig, usable_cores() + 1)
     told = replace(rig, render=rig.render.replace(threads=usable_cores() + 1))
     with pytest.raises(ValueError, match=r"^\[render\] threads: "):
