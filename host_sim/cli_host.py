@@ -154,7 +154,7 @@ def run(args: argparse.Namespace) -> int:
         elif args.simhost is not None:
             eyepoints, source, natural_s = _simhost_source(args, rig)
         else:
-            eyepoints, source, natural_s = _eyepoint_source(args, rig.cigi.origin)
+            eyepoints, source, natural_s = _eyepoint_source(args, rig, security)
     except ValueError as exc:
         error("host", exc)
         return EXIT_BAD_INPUT
@@ -189,11 +189,11 @@ def run(args: argparse.Namespace) -> int:
             eyepoints.close()
 
 
-def _eyepoint_source(args: argparse.Namespace, origin: tuple[float, float, float]):
+def _eyepoint_source(args: argparse.Namespace, rig, security):
     """(what the eyepoints come from, eyepoint_at, its natural length in simulated seconds).
 
-    Args:
-        origin: the world's geodetic origin (the rig file's cigi.origin), where JSBSim flies.
+    JSBSim flies around the rig file's cigi.origin, on the ground the rig's query channel (the
+    CIGI one: [cigi] query_channel, else the first channel) answers (host_sim.fdm.ground).
 
     Raises:
         ValueError: a control source or log that cannot be opened, a bad --fdm or a missing
@@ -205,7 +205,18 @@ def _eyepoint_source(args: argparse.Namespace, origin: tuple[float, float, float
         from host_sim.fdm.takeoff import ScriptedTakeoff
         from host_sim.inputs import open_source
 
-        model = open_model(parse_fdm(args.fdm or "point-mass"), origin=origin)
+        spec = parse_fdm(args.fdm or "point-mass")
+        ground = None
+        if spec.name == "jsbsim":
+            from host_sim.fdm.ground import QueryGround
+            from host_sim.fdm.jsbsim_model import import_jsbsim
+
+            import_jsbsim()  # a missing extra is said before the ground waits for a worker
+
+            query = rig.channel(rig.cigi.query_channel) if rig.cigi.query_channel else rig.channels[0]
+            ground = QueryGround(query.address, start_xy_m=RUNWAY_START_XY_M, security=security,
+                                 timeout_s=rig.cigi.query_timeout_s)
+        model = open_model(spec, origin=rig.cigi.origin, ground=ground)
         sources = []
         try:
             for url in args.controls or []:

@@ -123,7 +123,10 @@ def step(state: State, controls: Controls, dt_s: float, aircraft: Aircraft = Air
     pitch, roll, yaw = (_clamp(_finite(v), -1.0, 1.0) for v in (controls.pitch, controls.roll, controls.yaw))
     throttle, flaps, speed_brake = (_clamp(_finite(v), 0.0, 1.0)
                                     for v in (controls.throttle, controls.flaps, controls.speed_brake))
-    braking = _finite(controls.park_brake) >= 0.5
+    # The park brake sets both wheel brakes; the toe brakes press them in part. The point mass
+    # has no wheel track, so the two toe brakes brake as their mean and do not turn it.
+    toe = 0.5 * sum(_clamp(_finite(v), 0.0, 1.0) for v in (controls.brake_left, controls.brake_right))
+    braking = 1.0 if _finite(controls.park_brake) >= 0.5 else toe
     s = state
     mg = a.mass_kg * G_MPS2
 
@@ -156,10 +159,10 @@ def step(state: State, controls: Controls, dt_s: float, aircraft: Aircraft = Air
     thrust = a.thrust_max_n * throttle
 
     if on_ground:
-        # Rolling: friction on the weight the wings do not carry; the park brake holds the
-        # aircraft while thrust stays below the braking force.
+        # Rolling: friction on the weight the wings do not carry, from rolling to braked as the
+        # brakes are pressed; braked, the aircraft holds while thrust stays below the friction.
         normal = max(mg - lift, 0.0)
-        friction = (a.brake_friction if braking else a.rolling_friction) * normal
+        friction = (a.rolling_friction + (a.brake_friction - a.rolling_friction) * braking) * normal
         if s.speed_mps <= 0.0 and thrust <= friction:
             accel = 0.0
         else:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from .base import FlightModel
+from .ground import Ground
 
 #: Model name -> its form and what it is (for messages and --help).
 FDMS = {
@@ -53,12 +54,15 @@ def parse_fdm(text: str) -> FdmSpec:
     return FdmSpec(name, aircraft or JSBSIM_DEFAULT_AIRCRAFT)
 
 
-def open_model(spec: FdmSpec, *, origin: tuple[float, float, float]) -> FlightModel:
+def open_model(spec: FdmSpec, *, origin: tuple[float, float, float], ground: Ground | None = None) -> FlightModel:
     """The model spec names, at rest on the bundled airfield's runway 36 (JSBSim: engine running,
     brakes set, RUNWAY_START_XY_M; the point-mass model where the bundled flight starts).
 
     Args:
         origin: the world's geodetic origin (latitude deg, longitude deg, height m).
+        ground: the ground under JSBSim's wheels (ground.py), closed with the model or here
+            when the model cannot be made; default: the bundled runway's plane. The point-mass
+            model has its own runway plane and closes it at once.
 
     Raises:
         ValueError: jsbsim is not installed (the message says how to install it), or JSBSim
@@ -66,7 +70,14 @@ def open_model(spec: FdmSpec, *, origin: tuple[float, float, float]) -> FlightMo
     """
     if spec.name == "jsbsim":
         from .jsbsim_model import JSBSimModel
-        return JSBSimModel(spec.aircraft, origin=origin, start_xy_m=RUNWAY_START_XY_M,
-                           heading_deg=RUNWAY_HEADING_DEG)
+        try:
+            return JSBSimModel(spec.aircraft, origin=origin, start_xy_m=RUNWAY_START_XY_M,
+                               heading_deg=RUNWAY_HEADING_DEG, ground=ground)
+        except BaseException:
+            if ground is not None:
+                ground.close()
+            raise
+    if ground is not None:
+        ground.close()
     from .point_mass import PointMass
     return PointMass()

@@ -23,14 +23,19 @@ src/FDM/JSBSim/JSBSim.cxx): our pitch +1 is the stick fully aft, JSBSim's
 `fcs/elevator-cmd-norm` -1 is nose up, so elevator = -pitch; roll +1 (right) is
 `fcs/aileron-cmd-norm` +1 (right wing down); yaw +1 (right pedal) is `fcs/rudder-cmd-norm` -1
 (JSBSim's positive rudder yaws the nose left); throttle 0..1, flaps 0..1 and speed brake 0..1
-map one to one (throttle to every engine); the park brake lever sets both wheel brakes
-(`fcs/left|right-brake-cmd-norm`), our controls carry no toe brakes.
+map one to one (throttle to every engine); each wheel brake (`fcs/left|right-brake-cmd-norm`)
+is its toe brake, or full while the park brake lever is set.
+
+Steering on the ground: JSBSim's nose-wheel steering follows `fcs/steer-cmd-norm`, but the
+c172x's autopilot system (systems/Autopilot.xml, `ap/roll-command-selector-steering`) writes 0
+there at every step while its roll autopilot is off, so on that aircraft the pedals steer only
+through the rudder, which has little authority below about 20 kt. Pilots of aircraft with a
+castering nose wheel steer with differential braking; the toe brakes do that here too.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 
@@ -38,6 +43,7 @@ from services.rig.frame import Eyepoint
 
 from ..cigi import geometry
 from ..inputs.base import Controls
+from .ground import Ground, Plane
 
 #: JSBSim's own rate, steps per simulated second (its default time step is 1/120 s).
 STEP_HZ = 120.0
@@ -51,13 +57,6 @@ RUNWAY_Z_M = 0.0
 #: (JSBSim's initial conditions put the wheels at a guessed height; the struts then oscillate
 #: for a second or so).
 SETTLE_STEPS = 240
-
-Ground = Callable[[float, float], float]
-
-
-def _flat_runway(x_m: float, y_m: float) -> float:
-    return RUNWAY_Z_M
-
 
 def import_jsbsim():
     """The jsbsim module.
@@ -81,8 +80,9 @@ class JSBSimModel:
         origin: the geodetic (latitude deg, longitude deg, height m) of the world's (0, 0, 0).
         start_xy_m: world (x, y) of the start, metres.
         heading_deg: true heading of the start, degrees.
-        ground: world z of the ground under world (x, y), metres; default: the bundled
-            airfield's runway plane.
+        ground: world z of the ground under world (x, y), metres (ground.py: the rig's terrain
+            through a worker's query service); default: the bundled airfield's runway plane.
+            The model closes it.
         step_hz: steps per simulated second.
 
     Raises:
@@ -90,7 +90,7 @@ class JSBSimModel:
     """
 
     def __init__(self, aircraft: str, *, origin: tuple[float, float, float], start_xy_m: tuple[float, float],
-                 heading_deg: float = 0.0, ground: Ground = _flat_runway, step_hz: float = STEP_HZ) -> None:
+                 heading_deg: float = 0.0, ground: Ground | None = None, step_hz: float = STEP_HZ) -> None:
         if not (step_hz > 0 and math.isfinite(step_hz)):
             raise ValueError(f"step_hz: {step_hz} must be a finite number > 0")
         jsbsim = import_jsbsim()
@@ -98,14 +98,15 @@ class JSBSimModel:
         jsbsim.FGJSBBase().debug_lvl = 0
         self.aircraft = aircraft
         self.origin = (float(origin[0]), float(origin[1]), float(origin[2]))
-        self.ground = ground
+        self.ground: Ground = ground or Plane(RUNWAY_Z_M)
         self.step_hz = float(step_hz)
         fdm = jsbsim.FGFDMExec(jsbsim.get_default_root_dir())
         fdm.set_debug_level(0)
         if not fdm.load_model(aircraft):
             raise ValueError(f"--fdm jsbsim:{aircraft}: JSBSim has no aircraft {aircraft!r} "
                              f"(see {jsbsim.get_default_root_dir()}/aircraft)")
-        # The aircraft files name their own CSV outputs; the host writes no files.
+        # The aircraft files name their own CSV outputs; the host writes no files. (JSBSim
+        # still says once as it loads c172x that it cannot open JSBout172B.csv: harmless.)
         fdm.disable_output()
         fdm.set_dt(1.0 / self.step_hz)
         self.fdm = fdm
@@ -158,9 +159,9 @@ class JSBSimModel:
             f[f"fcs/throttle-cmd-norm[{k}]"] = throttle
         f["fcs/flap-cmd-norm"] = _clamp(c.flaps, 0.0, 1.0)
         f["fcs/speedbrake-cmd-norm"] = _clamp(c.speed_brake, 0.0, 1.0)
-        brake = 1.0 if c.park_brake >= 0.5 else 0.0
-        f["fcs/left-brake-cmd-norm"] = brake
-        f["fcs/right-brake-cmd-norm"] = brake
+        park = 1.0 if _finite(c.park_brake) >= 0.5 else 0.0
+        f["fcs/left-brake-cmd-norm"] = max(park, _clamp(c.brake_left, 0.0, 1.0))
+        f["fcs/right-brake-cmd-norm"] = max(park, _clamp(c.brake_right, 0.0, 1.0))
 
     def _run(self) -> None:
         x, y, _ = self.world_cg()
@@ -202,9 +203,14 @@ class JSBSimModel:
         return bool(self.fdm["gear/wow"] > 0.0)
 
     def close(self) -> None:
-        """Nothing to release: the FGFDMExec goes with the object."""
+        """Release the ground (its channel and thread); the FGFDMExec goes with the object."""
+        self.ground.close()
+
+
+def _finite(v: float) -> float:
+    return v if math.isfinite(v) else 0.0  # a non-finite control reads as neutral, as in the point-mass model
 
 
 def _clamp(v: float, lo: float, hi: float) -> float:
-    v = v if math.isfinite(v) else 0.0  # a non-finite control reads as neutral, as in the point-mass model
+    v = _finite(v)
     return lo if v < lo else hi if v > hi else v

@@ -8,7 +8,9 @@ it watches the model it flies (its eyepoint and airspeed), as a pilot does:
   THROTTLE_UP_S (smoothly, as a pilot does: at low speed the rudder has little authority
   against the propeller's swing);
 - on the runway: the pedals hold the runway heading and steer back to the centreline, the
-  stick neutral, the ailerons hold the wings level;
+  stick neutral, the ailerons hold the wings level; below BRAKE_STEER_MPS, where the rudder has
+  little authority, a toe brake on the side of the turn helps (differential braking: JSBSim's
+  c172x does not steer its nose wheel from the pedals);
 - at the rotation speed (vr_mps): the stick comes aft to hold the climb pitch; once airborne
   the same pitch hold climbs at full throttle, the ailerons bank (at most BANK_MAX_DEG) to
   turn back onto the runway heading and centreline, the pedals neutral.
@@ -42,6 +44,12 @@ K_HEADING = 0.15
 K_ROLL = 0.05
 K_CENTRELINE = 0.5
 CENTRELINE_MAX_DEG = 10.0
+#: Differential braking on the runway: toe brake per degree of heading error, at most
+#: BRAKE_STEER_MAX, only below BRAKE_STEER_MPS (above it the rudder steers and a brake would
+#: only lengthen the roll).
+K_BRAKE = 0.1
+BRAKE_STEER_MAX = 0.6
+BRAKE_STEER_MPS = 20.0
 #: The script delivers every control at every step: it is never stale.
 STALE_NEVER_S = 1e9
 
@@ -81,8 +89,12 @@ class ScriptedTakeoff(ControlSource):
         heading_error = (eye.heading_deg - target + 180.0) % 360.0 - 180.0  # nose right of the target: > 0
         self.rotated = self.rotated or self.model.speed_mps() >= self.vr_mps
         pitch = _clamp(K_PITCH * (self.climb_pitch_deg - eye.pitch_deg), -1.0, 1.0) if self.rotated else 0.0
+        left = right = 0.0
         if self.model.on_ground():
             yaw, bank = _clamp(-K_HEADING * heading_error, -1.0, 1.0), 0.0
+            if t >= BRAKES_S and self.model.speed_mps() < BRAKE_STEER_MPS:
+                brake = _clamp(K_BRAKE * abs(heading_error), 0.0, BRAKE_STEER_MAX)
+                left, right = (brake, 0.0) if heading_error > 0.0 else (0.0, brake)
         else:
             yaw, bank = 0.0, _clamp(-K_BANK * heading_error, -BANK_MAX_DEG, BANK_MAX_DEG)
         values = {
@@ -91,6 +103,8 @@ class ScriptedTakeoff(ControlSource):
             "yaw_control_position": yaw,
             "roll_control_position": _clamp(K_ROLL * (bank - eye.roll_deg), -1.0, 1.0),
             "pitch_control_position": pitch,
+            "left_brake_pedal_position": left,
+            "right_brake_pedal_position": right,
         }
         for signal, value in values.items():
             self._accept(signal, value, now_s)

@@ -63,6 +63,8 @@ class Controls:
         flaps: 0 (retracted) .. 1 (fully extended) flaps lever.
         speed_brake: 0 (retracted) .. 1 (fully extended) speed brake lever.
         park_brake: 0 released, 1 set.
+        brake_left, brake_right: 0 (released) .. 1 (fully pressed) toe brakes on the rudder
+            pedals: pressed apart, they turn the aircraft on the ground (differential braking).
     """
 
     pitch: float = 0.0
@@ -72,6 +74,8 @@ class Controls:
     flaps: float = 0.0
     speed_brake: float = 0.0
     park_brake: float = 0.0
+    brake_left: float = 0.0
+    brake_right: float = 0.0
 
 
 #: Signal name (see canaerospace.CONTROLS) -> Controls field; the throttle levers are averaged.
@@ -86,6 +90,8 @@ SIGNAL_FIELDS = {
     "flaps_lever_position": "flaps",
     "speed_brake_lever_position": "speed_brake",
     "park_brake_lever_position": "park_brake",
+    "left_brake_pedal_position": "brake_left",
+    "right_brake_pedal_position": "brake_right",
 }
 
 

@@ -74,6 +74,10 @@ CONTROLS: tuple[Signal, ...] = (
     Signal(430, "flaps_lever_position", FLOAT, 0.0, 1.0, "norm", "retracted 0, fully extended 1"),
     Signal(432, "park_brake_lever_position", UCHAR, 0.0, 1.0, "enum", "released 0, set 1"),
     Signal(433, "speed_brake_lever_position", FLOAT, 0.0, 1.0, "norm", "retracted 0, fully extended 1"),
+    Signal(435, "left_brake_pedal_position", FLOAT, 0.0, 1.0, "norm",
+           "released 0, fully pressed 1 (pilot's left toe brake)"),
+    Signal(436, "right_brake_pedal_position", FLOAT, 0.0, 1.0, "norm",
+           "released 0, fully pressed 1 (pilot's right toe brake)"),
 )
 BY_ID = {s.can_id: s for s in CONTROLS}
 BY_NAME = {s.name: s for s in CONTROLS}

@@ -42,7 +42,7 @@ def check(s: State) -> None:
 
 any_value = st.one_of(st.floats(-2.0, 2.0), st.sampled_from([math.nan, math.inf, -math.inf, -1.0, 1.0, 0.0]))
 controls = st.builds(Controls, pitch=any_value, roll=any_value, yaw=any_value, throttle=any_value, flaps=any_value,
-                     speed_brake=any_value, park_brake=any_value)
+                     speed_brake=any_value, park_brake=any_value, brake_left=any_value, brake_right=any_value)
 
 
 @settings(max_examples=40, deadline=None)
@@ -70,6 +70,18 @@ def test_deterministic():
 def test_rests_with_the_park_brake_and_idle_thrust():
     s = fly(on_runway(5.0, -10.0, 90.0, A), Controls(throttle=0.1, park_brake=1.0), 5.0)
     assert (s.x_m, s.y_m, s.z_m, s.speed_mps) == (5.0, -10.0, FLOOR, 0.0) and s.on_ground
+
+
+def test_toe_brakes_hold_and_slow_the_aircraft_as_far_as_they_are_pressed():
+    # Both pressed in full: held like the park brake. Pressed apart they brake as their mean:
+    # the point mass has no wheel track to turn on.
+    s = fly(on_runway(5.0, -10.0, 90.0, A), Controls(throttle=0.1, brake_left=1.0, brake_right=1.0), 5.0)
+    assert (s.x_m, s.y_m, s.speed_mps) == (5.0, -10.0, 0.0)
+    rolling = fly(on_runway(0.0, 0.0, 0.0, A), Controls(throttle=1.0), 8.0)
+    speeds = [fly(rolling, Controls(throttle=0.0, brake_left=b, brake_right=b), 3.0).speed_mps for b in (0.0, 0.5, 1.0)]
+    assert speeds[0] > speeds[1] > speeds[2] >= 0.0
+    one_side = fly(rolling, Controls(throttle=0.0, brake_left=1.0), 3.0)
+    assert one_side.speed_mps == pytest.approx(speeds[1]) and one_side.track_rad == rolling.track_rad
 
 
 def test_takes_off_climbs_and_holds_the_flight_path():

@@ -13,10 +13,13 @@ import pytest
 
 from host_sim.controlled import ControlledFlight
 from host_sim.fdm import RUNWAY_HEADING_DEG, RUNWAY_START_XY_M, open_model, parse_fdm
+from host_sim.fdm.ground import Plane, QueryGround
 from host_sim.fdm.jsbsim_model import FT_M, IN_M, JSBSimModel
 from host_sim.fdm.takeoff import VR_MPS, ScriptedTakeoff
 from host_sim.inputs.base import Controls
 from services.rig.rigfile import CigiSpec
+
+from .analytic_ground import AnalyticGround, serving
 
 pytest.importorskip("jsbsim")
 
@@ -64,8 +67,46 @@ def test_the_wheels_follow_a_raised_ground():
     # Our ground, not JSBSim's sea level, carries the aircraft: with the ground 10 m higher
     # everywhere, the aircraft rests 10 m higher.
     low = c172().world_cg()[2]
-    high = c172(ground=lambda x, y: 10.0).world_cg()[2]
+    high = c172(ground=Plane(10.0)).world_cg()[2]
     assert high - low == pytest.approx(10.0, abs=0.05)
+
+
+def test_the_wheels_roll_on_the_query_services_ground_up_a_slope():
+    # The rig's ground from a query service (host_sim.fdm.ground), rising 1 m per 100 m north
+    # (a runway's steepest usual gradient): rolling 15 s at full throttle, the centre of gravity
+    # keeps its height above the ground under it. JSBSim takes the ground as level under the
+    # aircraft at each step, so up a slope it sees level ground rising under its wheels and its
+    # strut dampers give: about 8 cm at 18 m/s here (docs/host-flight-model.md).
+    def rising(x, y):
+        return 0.01 * (y - RUNWAY_START_XY_M[1])
+
+    with serving(AnalyticGround(rising)) as address:
+        m = c172(ground=QueryGround(address, start_xy_m=RUNWAY_START_XY_M))
+        try:
+            above = []
+            for _ in range(15 * STEP_HZ):
+                m.step(Controls(throttle=1.0))
+                cg = m.world_cg()
+                above.append(cg[2] - rising(cg[0], cg[1]))
+            assert m.world_cg()[1] > RUNWAY_START_XY_M[1] + 80.0 and m.on_ground()
+            assert rising(0.0, m.world_cg()[1]) > 0.8  # it climbed the slope
+            assert 1.1 < above[0] < 1.5 and max(above) - min(above) < 0.1
+            assert m.ground.status()["outside"] == 0
+        finally:
+            m.close()
+
+
+def test_toe_brakes_turn_the_aircraft_on_the_ground():
+    # Differential braking: the c172x does not steer its nose wheel from the pedals
+    # (jsbsim_model's module doc), so a pilot turns it on the ground with a toe brake.
+    turns = {}
+    for side in ("left", "right"):
+        m = c172()
+        fly(m, Controls(throttle=0.6), 6.0)
+        before = m.eyepoint().heading_deg
+        fly(m, Controls(throttle=0.6, **{f"brake_{side}": 0.6}), 3.0)
+        turns[side] = (m.eyepoint().heading_deg - before + 180.0) % 360.0 - 180.0
+    assert turns["left"] < -5.0 and turns["right"] > 5.0
 
 
 def test_controls_map_to_fcs_properties_with_signs():
@@ -81,6 +122,10 @@ def test_controls_map_to_fcs_properties_with_signs():
     m.step(Controls(pitch=5.0, throttle=float("nan")))  # clamped, non-finite reads as neutral
     assert f["fcs/elevator-cmd-norm"] == -1.0 and f["fcs/throttle-cmd-norm[0]"] == 0.0
     assert f["fcs/left-brake-cmd-norm"] == 0.0
+    m.step(Controls(brake_left=0.3, brake_right=2.0))  # toe brakes, each its wheel's, clamped
+    assert f["fcs/left-brake-cmd-norm"] == pytest.approx(0.3) and f["fcs/right-brake-cmd-norm"] == 1.0
+    m.step(Controls(brake_left=0.3, park_brake=1.0))  # the park brake sets both in full
+    assert f["fcs/left-brake-cmd-norm"] == 1.0 and f["fcs/right-brake-cmd-norm"] == 1.0
 
 
 def airborne_model() -> JSBSimModel:
@@ -146,8 +191,9 @@ def test_scripted_take_off_leaves_the_runway_and_climbs_on_its_heading():
         if lift_off is None and not model.on_ground():
             lift_off = (t, eye.position.copy(), model.speed_mps())
         if lift_off is None:
-            # On the runway (45 m wide, x -22.5 .. 22.5), eye at the height it had at rest.
-            assert abs(eye.position[0]) < 22.5
+            # On the runway's centreline within 5 m (the runway is 45 m wide), eye at the height
+            # it had at rest: below 20 m/s the toe brakes steer, above it the rudder.
+            assert abs(eye.position[0]) < 5.0
             assert eye.position[2] == pytest.approx(track[0].position[2], abs=0.2)
     assert lift_off is not None
     t_off, at, v = lift_off

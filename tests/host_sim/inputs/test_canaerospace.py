@@ -30,7 +30,9 @@ def test_identifiers_are_the_standards_normal_operation_flight_controls():
     assert [ids[f"throttle_{k}_lever_position"] for k in (1, 2, 3, 4)] == [414, 415, 416, 417]
     assert (ids["flaps_lever_position"], ids["park_brake_lever_position"], ids["speed_brake_lever_position"]) \
         == (430, 432, 433)
-    assert all(400 <= i <= 433 and i < 2048 for i in ids.values())  # 11-bit
+    # can_as.h: PLT_LEFT_BRAKE_POS_ID 435, PLT_RIGHT_BRAKE_POS_ID 436 (the pilot's toe brakes).
+    assert (ids["left_brake_pedal_position"], ids["right_brake_pedal_position"]) == (435, 436)
+    assert all(400 <= i <= 442 and i < 2048 for i in ids.values())  # the flight-controls block; 11-bit
 
 
 def test_frame_layout_is_header_then_big_endian_data():
