@@ -9,6 +9,7 @@ speed against error for the level bias, a lean Voxel Space peer, and the issue's
     python bench/bench_terrain.py --replot        # redraw terrain.png from terrain.json
     python bench/bench_terrain.py --peer-only     # only the Voxel Space peer (2-3 minutes)
     python bench/bench_terrain.py --targets-only  # only the targets (section 7; under a minute)
+    python bench/bench_terrain.py --detail-only   # only the land's detail (section 8; a minute)
 
 1. Sweep: a 4096 x 4096-voxel, 3 m procedural database (bench/scenes/terrain.py, cached after
    its first build) seen from 50 to 4000 m above the ground under the eye at pitches -90 to 0
@@ -38,6 +39,11 @@ speed against error for the level bias, a lean Voxel Space peer, and the issue's
    range error of our stage at each roll (median, 95th percentile, maximum) against the exact
    reference, and the stage's speed-up from one numba thread to two (that part on two CPUs).
    `--targets-only` runs this section alone and updates its key (targets) in terrain.json.
+8. The land's detail (docs/terrain.md "Detail": land classes, fields and hedges, the pads'
+   grass, each class's texture code): the cast with and without the scene's terrain.detail on
+   the bundled terrain, from the docs' views (docs/images/render_views.py) and points of the
+   bundled flight; the detail's share of the cast against the 15 % it may cost.
+   `--detail-only` runs this section alone and updates its key (detail) in terrain.json.
 
 The record's keys keep their names from when the stage was called "terrain" and its function
 render_terrain (terrain_ms, render_terrain_ms), so that records compare across versions; they
@@ -180,6 +186,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--targets-only", action="store_true",
                         help="run only the issue's targets (section 7) and update its key "
                              "(targets) in terrain.json, leaving the rest as it is")
+    parser.add_argument("--detail-only", action="store_true",
+                        help="run only the land's detail (section 8) and update its key (detail) "
+                             "in terrain.json, leaving the rest as it is")
     args = parser.parse_args(argv)
     if replot(args, "terrain", print_report, plot):
         return 0
@@ -213,6 +222,9 @@ def main(argv: list[str] | None = None) -> int:
         return section_only(args.out, "targets", functools.partial(
             targets, quick=quick, repeats=repeats, pair=pair, progress=progress), print_targets,
             cpu, progress)
+    if args.detail_only:
+        return section_only(args.out, "detail", functools.partial(
+            land_detail, quick=quick, repeats=repeats, progress=progress), print_detail, cpu, progress)
     record: dict[str, Any] = {
         "benchmark": "background stage's voxel terrain (JP H07-76990), one core: time and voxels "
                      "against pitch and altitude, options, speed against error for the level "
@@ -238,6 +250,7 @@ def main(argv: list[str] | None = None) -> int:
     bias_grid(record, quick, bias_repeats, progress)
     voxel_space_peer(record, quick, repeats, progress)
     targets(record, quick, repeats, pair, progress)
+    land_detail(record, quick, repeats, progress)
     record["seconds"] = progress.seconds
     finish(record, args.out, "terrain", print_report, plot)
     return 0
@@ -1226,6 +1239,81 @@ def targets(record: dict, quick: bool, repeats: int, pair: tuple[int, int] | Non
     }
 
 
+# --- 8. the land's detail ---------------------------------------------------------------------
+
+#: The detail may cost this share of the terrain cast (the issue's constraint).
+DETAIL_BUDGET = 0.15
+
+
+def land_detail(record: dict, quick: bool, repeats: int, progress: Progress) -> None:
+    """The cast with the demo scene's terrain.detail and without it, from the docs' views and
+    points of the bundled flight (centre channel, the sweep's size)."""
+    from channel_worker.pipeline.geometry.view import make_view
+    from channel_worker.pipeline.scene.load import demo_scene_path, load_scene
+    from host_sim.flight import bundled_flight
+    from services.rig.frame import Eyepoint
+    from services.rig.rigfile import default_rig_path, load_rig
+
+    sys.path.insert(0, str(REPO / "docs" / "images"))
+    from render_views import VIEWS
+
+    demo = load_scene(demo_scene_path())
+    plain = dataclasses.replace(demo, terrain_land=None)
+    channel = load_rig(default_rig_path()).with_size(WIDTH, HEIGHT).channels[1].spec
+    offsets = RenderOptions(samples=SAMPLES).sample_offsets()
+    eyes = {name: Eyepoint(np.array(xyz, np.float64), *hpr) for name, (xyz, hpr) in VIEWS.items()}
+    flight = bundled_flight()
+    for t in (QUICK["flight"][:1] if quick else (0.0, 10.0, 20.0)):
+        eyes[f"flight t={t:g} s"] = flight.eyepoint_at(t)
+    rows = []
+    for name, eye in eyes.items():
+        view = make_view(channel, eye)
+        # Interleaved, one call of each at a time: this machine's speed drifts over seconds, and
+        # the difference wanted is a few tens of milliseconds.
+        runs: dict[str, list[dict[str, float]]] = {"with": [], "without": []}
+        for k in range(repeats + 1):  # the first is the warm-up
+            for key, db in (("with", demo), ("without", plain)):
+                parts: dict[str, float] = {}
+                t0 = time.perf_counter()
+                background_alone(db, view, offsets, parts=parts)
+                parts["total"] = time.perf_counter() - t0
+                if k:
+                    runs[key].append(parts)
+        with_detail, without = ({"cast_ms": median_ms([r["background.cast"] for r in runs[key]]),
+                                 "total_ms": median_ms([r["total"] for r in runs[key]])}
+                                for key in ("with", "without"))
+        # The detail's cost: what it adds to the cast, against the stage (cast, per-sample depth
+        # and clouds) and against the cast alone.
+        added = with_detail["cast_ms"] - without["cast_ms"]
+        share = added / without["total_ms"] if without["total_ms"] > 0 else 0.0
+        cast_share = added / without["cast_ms"] if without["cast_ms"] > 0 else 0.0
+        rows.append({"view": name, "with_detail": with_detail, "without": without, "detail_share": share,
+                     "cast_share": cast_share})
+        progress(f"detail {name}: cast {without['cast_ms']:6.1f} -> {with_detail['cast_ms']:6.1f} ms, "
+                 f"+{100 * share:.1f} % of the stage ({100 * cast_share:+.1f} % of the cast)")
+    record["detail"] = {
+        "method": "render_background called alone on the demo scene with its terrain.detail and with "
+                  "terrain_land=None, one call of each in turn, centre channel at the sweep's size and "
+                  "samples; cast_ms = parts['background.cast'], total_ms the whole render_background (cast, "
+                  "per-sample depth, clouds), medians over the repeats after one warm-up of each; detail_share = (cast with - cast "
+                  "without) / stage without (the budget's measure), cast_share = the same over the cast "
+                  "without",
+        "budget": DETAIL_BUDGET, "rows": rows,
+        "worst_share": max(r["detail_share"] for r in rows),
+    }
+
+
+def print_detail(section: dict) -> None:
+    print(f"\nthe land's detail (budget {100 * section['budget']:.0f} % of the terrain stage), one core")
+    print(f"{'view':<22}{'stage without':>14}{'cast without':>14}{'cast with':>11}{'of stage':>10}{'of cast':>9}")
+    for r in section["rows"]:
+        print(f"{r['view']:<22}{r['without']['total_ms']:>11.1f} ms{r['without']['cast_ms']:>11.1f} ms"
+              f"{r['with_detail']['cast_ms']:>8.1f} ms{100 * r['detail_share']:>9.1f}%"
+              f"{100 * r.get('cast_share', 0.0):>8.1f}%")
+    verdict = "within" if section["worst_share"] <= section["budget"] else "OVER"
+    print(f"worst {100 * section['worst_share']:.1f} %: {verdict} the budget")
+
+
 def section_only(out: Path, key: str, run: Callable[[dict], None],
                  show: Callable[[dict], None], cpu: int | None, progress: Progress) -> int:
     """--peer-only, --targets-only: run one section (run(record) fills record[key]) and put it
@@ -1356,6 +1444,8 @@ def print_report(record: dict) -> None:
         print_peer(record["voxel_space_peer"])
     if "targets" in record:  # nor the targets
         print_targets(record["targets"])
+    if "detail" in record:  # nor the land's detail
+        print_detail(record["detail"])
     m = record["machine"]
     noise = record["sweep_noise"]
     print(f"\nnoise: the slowest of a sweep cell's frames is x {noise['median']:.2f} the fastest "

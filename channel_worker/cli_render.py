@@ -84,6 +84,9 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         print(f"ig render: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if report.counters.get("terrain_eye_clamped"):
+        print(f"ig render: warning: the eye {tuple(args.eye)} is below the terrain; the terrain is drawn from "
+              "just above its surface, the polygons from the eye", file=sys.stderr)
     if args.times:
         for stage, seconds in report.stage_seconds.items():
             print(f"{stage:>10} {seconds * 1000:9.2f} ms")

@@ -186,6 +186,7 @@ class ChannelWorker:
         self.host_stub = host_pb2_grpc.HostServiceStub(self._host)
         self.compositor_stub = SubmitStub(self._compositor)
         self._last_taken = -1
+        self._eye_below_said = False  # the eye-below-terrain warning, said once a run
         # The host's environment as this worker's database, built once per environment.
         self._environments = EnvironmentCache()
 
@@ -313,6 +314,7 @@ class ChannelWorker:
             first_of_run = frame.run_id != c.run_id
             if first_of_run:
                 self._last_taken = -1  # frame numbers start again with each run
+                self._eye_below_said = False
                 c.runs += 1
             if self._last_taken >= 0 and number > self._last_taken + 1:
                 c.frames_skipped += number - self._last_taken - 1
@@ -339,6 +341,16 @@ class ChannelWorker:
                 self.counters.terrain_voxels_last_frame = stats.get("terrain_voxels", 0)
                 self.counters.terrain_voxels_total += stats.get("terrain_voxels", 0)
                 self.counters.terrain_eye_clamped += stats.get("terrain_eye_clamped", 0)
+                say_below = bool(stats.get("terrain_eye_clamped", 0)) and not self._eye_below_said
+                self._eye_below_said = self._eye_below_said or say_below
+            if say_below:
+                # Once a run (the counter counts every frame): a host flying below the ground is
+                # a host's fault the picture alone does not show.
+                e = frame.eyepoint
+                log.warning("worker %s frame %d: the eye (%.1f, %.1f, %.1f) is below the terrain; the "
+                            "terrain is drawn from just above its surface, polygons from the eye "
+                            "(counted in terrain_eye_clamped; said once a run)", self.channel.name, number,
+                            e.x, e.y, e.z)
         except ValueError as exc:
             # The message names the field and value, e.g. "eyepoint.position[2]: nan is not finite".
             error = clip(f"frame {number} refused: {exc}")

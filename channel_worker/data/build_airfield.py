@@ -389,6 +389,14 @@ TEXTURE_CODES = {
               "amplitudes": [0.7, 0.5], "modulation": "colour"},
     "brick": {"textures": ["brick"], "intensity": 1.0, "scale_m": [3.0, 3.0], "modulation": "colour"},
     "metal": {"textures": ["streaks"], "intensity": 0.5, "scale_m": [1.5, 12.0]},
+    # The land over the bundled terrain (its "detail"): meadow grass with coarse patches; crop
+    # rows (noise stretched 25:1) in fields; broken rock. One or two textures each: the cast
+    # reads them at every near step (bench_terrain.py section 8).
+    "terrain_grass": {"textures": ["grass", "patches"], "intensity": 0.8, "scale_m": [12.0, 12.0],
+                      "detail_scale_m": [40.0, 40.0], "detail_offset_m": [31.0, 11.0], "amplitudes": [0.7, 0.0]},
+    "field": {"textures": ["streaks"], "intensity": 0.8, "scale_m": [3.0, 75.0]},
+    "rock": {"textures": ["gravel", "patches"], "intensity": 0.9, "scale_m": [5.0, 5.0],
+             "detail_scale_m": [35.0, 35.0], "amplitudes": [0.8, 0.0]},
 }
 # Models shaded smoothly (Gouraud): the barrel roofs, and the hills' terrain-like slopes.
 SMOOTH_MODELS = {"arched_hangar"} | {f"hill_{k + 1}" for k in range(9)}
@@ -513,7 +521,11 @@ def build_terrain_scene() -> dict[str, Any]:
     lying in the valleys below it."""
     doc = build_scene()
     doc["name"] = "bundled airfield on the Jacksboro terrain"
-    doc["terrain"] = {"database": "bundled:jacksboro", "polygon_margin_m": 1.0}
+    # The land's detail: texture codes per land class over the relief colour, and the airfield's
+    # grass (colour and code of its grass faces) on its pad, feathered into the land around it.
+    doc["terrain"] = {"database": "bundled:jacksboro", "polygon_margin_m": 1.0,
+                      "detail": {"grass": "terrain_grass", "field": "field", "rock": "rock",
+                                 "pad": {"code": "grass", "colour": GRASS}}}
     doc["haze"] = {"visibility_m": 30000.0, "scale_height_m": 1500.0, "base_height_m": 0.0,
                    "colour": "#c4ccd6"}
     # Fair-weather cumulus a kilometre above the airfield, over the terrain's area and beyond.

@@ -109,3 +109,19 @@ def test_render_frame_refuses_a_channel_beyond_16384_pixels_a_side():
         check_channel(ChannelSpec.symmetric("big", 16385, 1, 60.0))
     with pytest.raises(ValueError, match=r"channel 'tall': height 100000 is more than the 16384 pixels"):
         render_frame(parse_scene(SCENE), ChannelSpec.symmetric("tall", 8, 100_000, 10.0), Eyepoint.of(0, 0, 2, 0, 0, 0))
+
+
+def test_an_eye_below_the_terrain_is_said_in_one_warning_line(tmp_path, capsys):
+    from channel_worker.pipeline.scene.load import demo_scene_path
+
+    png = tmp_path / "below.png"
+    assert run([str(demo_scene_path()), "--eye", "0", "0", "-100", "--width", "48", "--height", "36",
+                "--samples", "1", "--out", str(png), "--times"]) == 0
+    captured = capsys.readouterr()
+    warnings = [line for line in captured.err.splitlines() if "warning" in line]
+    assert warnings == ["ig render: warning: the eye (0.0, 0.0, -100.0) is below the terrain; the terrain is "
+                        "drawn from just above its surface, the polygons from the eye"]
+    assert "terrain_eye_clamped 1" in " ".join(captured.out.split())
+    assert run([str(demo_scene_path()), "--eye", "0", "0", "100", "--width", "48", "--height", "36",
+                "--samples", "1", "--out", str(png)]) == 0
+    assert "warning" not in capsys.readouterr().err

@@ -35,7 +35,30 @@ from numba import njit, prange
 from channel_worker.pipeline.contract import F_ON, F_RGB, F_WORLD_AXIS
 from channel_worker.pipeline.fog.fog import fog_depth
 from channel_worker.pipeline.jit import borrowing, claim, lanes, new_queue
+from channel_worker.pipeline.scene.texture_sampling import TextureArrays, texture_modulation
 
+from ._groups import (
+    FIELD,
+    GRASS,
+    PAD,
+    ROCK,
+    T_CLASS_FADE,
+    T_CLASS_N,
+    T_CLASSES,
+    T_FIELD_H,
+    T_FIELD_SHARE,
+    T_FIELD_SLOPE,
+    T_FIELD_W,
+    T_FIELDS,
+    T_FIELDS_N,
+    T_HEDGE,
+    T_HEDGE_M,
+    T_LUM_REF,
+    T_ORIGIN,
+    T_PADS_AT,
+    T_PADS_N,
+    T_ROCK_SLOPE,
+)
 from ._sky_kernels import backdrop_along
 from .haze import haze_amount
 
@@ -44,11 +67,18 @@ _ROW, _AR, _AG, _AB, _AW, _IR = 0, 1, 2, 3, 4, 5
 _R1, _Z1, _R2, _Z2 = 6, 7, 8, 9  # the last segment emitted
 _TANMAX = 10  # tangent of the highest elevation seen so far (the line's horizon)
 _SMAX = 11  # the horizon's position along the line (steps)
-_STATE = 12
-# The line's buffer, a row per step: premultiplied colour after haze and fog, coverage, and
-# 1/z (eye depth, metres) of the surface at the step's centre.
+_GROUND = 12  # 1 while the last surface emitted is ground (a voxel's top), 0 for walls and patterns
+_SLOPE = 13  # that voxel's slope (tangent), for the land's detail (TerrainDetail)
+_DETAIL = 14  # 1: the line draws the land's detail (TerrainDetail.on)
+_CELL_I, _CELL_J, _CELL_FIELD = 15, 16, 17  # the last field cell _detail looked at, and its verdict
+_STATE = 18
+# The line's buffer, a row per step: premultiplied colour (after haze and fog once the line is
+# cast, _through_air), coverage, and 1/z (eye depth, metres) of the surface at the step's
+# centre; for _through_air: the range haze and fog take, and for the land's detail whether
+# the step ends on ground, its slope and the sine of the ray's angle to it.
 _B_R, _B_G, _B_B, _B_A, _B_IZ = 0, 1, 2, 3, 4
-_BUF = 5
+_B_RANGE, _B_GROUND, _B_SLOPE, _B_GRAZE = 5, 6, 7, 8
+_BUF = 9
 # A line's record in its lane (cast_kernel): the steps it walks, the steps it owns, and its
 # steps.
 _M_LO, _M_HI, _M_FIRST, _M_LAST, _M_N = 0, 1, 2, 3, 4
@@ -111,7 +141,8 @@ class _Line(NamedTuple):
     azimuth and vertical component z0 + z1 s (both affine in s: the screen maps linearly to
     eye rays). n: steps. tan_lo, tan_hi: elevation tangents at s = 0 and s = n (-inf or +inf
     where that end is the nadir or zenith). axh: the fog axis's horizontal component along
-    the azimuth."""
+    the azimuth. dx, dy: the azimuth's unit direction (east, north); ex, ey: the eye's ground
+    position relative to the database origin, metres."""
 
     h0: float
     h1: float
@@ -121,6 +152,10 @@ class _Line(NamedTuple):
     tan_lo: float
     tan_hi: float
     axh: float
+    dx: float
+    dy: float
+    ex: float
+    ey: float
 
 
 @njit(cache=True, inline="always")
@@ -211,16 +246,17 @@ def _colour_at(colours, paint, t):
 
 
 @borrowing
-def _finish_step(st, ln, air, buf):
-    """Keep the current step's terrain in the line's buffer from the accumulators in st,
-    through the haze and fog, and start the next step."""
+def _finish_step(st, ln, air, buf, colours):
+    """Keep the current step's terrain in the line's buffer from the accumulators in st (its
+    colour goes through the land's detail, the haze and the fog once the line is cast:
+    _through_air), and start the next step."""
     row = int(st[_ROW])
     w = st[_AW]
-    r = st[_AR]
-    g = st[_AG]
-    b = st[_AB]
     ir = st[_IR]
     h, v = _direction(ln, row + 0.5)
+    rng = 0.0
+    ground = 0.0
+    graze = 1.0
     if w > 0.0:
         seg = (st[_R1], st[_Z1], st[_R2], st[_Z2])
         if ir == 0.0:
@@ -229,36 +265,265 @@ def _finish_step(st, ln, air, buf):
             # the step (negative where it would meet the line behind the eye), so a partly
             # covered pixel at an edge or crest interpolates as well as whole ones.
             ir = _inverse_range_on_line(h, v, seg)
-        if air[0] != 0.0 or air[F_ON] != 0.0:
-            # The surface's range at the step's centre, or that of the last segment's far end.
-            rng = 1.0 / ir if ir > 0.0 else math.sqrt(seg[2] * seg[2] + seg[3] * seg[3])
-            norm = math.sqrt(h * h + v * v)
-            sn = v / norm  # guard: _direction never returns (0, 0)
-            if air[0] != 0.0:
-                hz = haze_amount(air, rng, sn)
-                # Premultiplied: the haze covers the share w of the pixel the terrain covers.
-                r = r * (1.0 - hz) + air[3] * hz * w
-                g = g * (1.0 - hz) + air[4] * hz * w
-                b = b * (1.0 - hz) + air[5] * hz * w
-            if air[F_ON] != 0.0:
-                cos_ax = ln.axh * h / norm + air[F_WORLD_AXIS + 2] * sn
-                t = math.exp(-fog_depth(air, rng, cos_ax))
-                r = t * r + (1.0 - t) * air[F_RGB] * w
-                g = t * g + (1.0 - t) * air[F_RGB + 1] * w
-                b = t * b + (1.0 - t) * air[F_RGB + 2] * w
-    buf[row, _B_R] = r
-    buf[row, _B_G] = g
-    buf[row, _B_B] = b
+        # The surface's range at the step's centre, or that of the last segment's far end.
+        rng = 1.0 / ir if ir > 0.0 else math.sqrt(seg[2] * seg[2] + seg[3] * seg[3])
+        if st[_DETAIL] != 0.0 and st[_GROUND] != 0.0 and ir > 0.0:
+            ground = 1.0
+            nr = seg[1] - seg[3]
+            nz = seg[2] - seg[0]
+            nn = math.sqrt(nr * nr + nz * nz)
+            # guard: _direction never returns (0, 0); nn > 0 checked.
+            graze = abs(nr * h + nz * v) / (nn * math.sqrt(h * h + v * v)) if nn > 0.0 else 1.0
+    buf[row, _B_R] = st[_AR]
+    buf[row, _B_G] = st[_AG]
+    buf[row, _B_B] = st[_AB]
     buf[row, _B_A] = min(w, 1.0)
     # 1/z = |(tx, ty, 1)| / range: affine across a plane in screen space, so the pixels
     # between two lines and the samples between pixels interpolate it.
     buf[row, _B_IZ] = math.sqrt(h * h + v * v) * ir
+    buf[row, _B_RANGE] = rng
+    buf[row, _B_GROUND] = ground
+    buf[row, _B_SLOPE] = st[_SLOPE]
+    buf[row, _B_GRAZE] = graze
     st[_ROW] = row + 1
     st[_AR] = 0.0
     st[_AG] = 0.0
     st[_AB] = 0.0
     st[_AW] = 0.0
     st[_IR] = 0.0
+
+
+@borrowing
+def _through_air(ln, buf, lo, hi, air, detail, pages, st):
+    """The cast line's steps lo .. hi - 1 as they show: each step's colour with the land's
+    detail where it ends on ground, then through the haze and the fog, in place. Once a line,
+    after its cast: the per-segment calls never carry the detail's arrays."""
+    hazy = air[0] != 0.0
+    foggy = air[F_ON] != 0.0
+    for row in range(lo, hi):
+        w = buf[row, _B_A]
+        if w <= 0.0:
+            continue
+        r = buf[row, _B_R]
+        g = buf[row, _B_G]
+        b = buf[row, _B_B]
+        h, v = _direction(ln, row + 0.5)
+        rng = buf[row, _B_RANGE]
+        if buf[row, _B_GROUND] != 0.0:
+            r, g, b = _detail(ln, detail, pages, st, h, v, rng, buf[row, _B_SLOPE], buf[row, _B_GRAZE], w,
+                              r, g, b)
+        if hazy or foggy:
+            norm = math.sqrt(h * h + v * v)
+            sn = v / norm  # guard: _direction never returns (0, 0)
+            if hazy:
+                hz = haze_amount(air, rng, sn)
+                # Premultiplied: the haze covers the share w of the pixel the terrain covers.
+                r = r * (1.0 - hz) + air[3] * hz * w
+                g = g * (1.0 - hz) + air[4] * hz * w
+                b = b * (1.0 - hz) + air[5] * hz * w
+            if foggy:
+                cos_ax = ln.axh * h / norm + air[F_WORLD_AXIS + 2] * sn
+                t = math.exp(-fog_depth(air, rng, cos_ax))
+                r = t * r + (1.0 - t) * air[F_RGB] * w
+                g = t * g + (1.0 - t) * air[F_RGB + 1] * w
+                b = t * b + (1.0 - t) * air[F_RGB + 2] * w
+        buf[row, _B_R] = r
+        buf[row, _B_G] = g
+        buf[row, _B_B] = b
+
+
+@njit(cache=True, inline="always")
+def _hash(i, j):
+    """A 32-bit hash of two integers (multiply-xorshift mixing, as in MurmurHash3's finaliser):
+    neighbouring cells get unrelated values."""
+    h = (i * 0x9E3779B1 + j * 0x85EBCA77 + 0x165667B1) & 0xFFFFFFFF
+    h ^= h >> 16
+    h = (h * 0x85EBCA6B) & 0xFFFFFFFF
+    h ^= h >> 13
+    h = (h * 0xC2B2AE35) & 0xFFFFFFFF
+    h ^= h >> 16
+    return h
+
+
+@njit(cache=True, inline="always")
+def _band_cover(d, half, fp):
+    """Share of a footprint fp wide, centred at signed distance d from a line, that a band
+    within half of the line covers (a box filter of the band: a sharp edge near the eye, the
+    band's mean share far away)."""
+    lo = max(d - 0.5 * fp, -half)
+    hi = min(d + 0.5 * fp, half)
+    return max(hi - lo, 0.0) / fp  # guard: fp > 0 (the caller's footprint floor)
+
+
+@njit(cache=True, inline="always")
+def _level0_z(pages, x, y):
+    """The level-0 surface height at database-relative (x, y), metres; NaN off the level or
+    where its page is missing."""
+    d = pages.spacing
+    ix = int(math.floor(x / d))  # guard: spacing > 0
+    iy = int(math.floor(y / d))
+    if ix < 0 or iy < 0 or ix >= pages.level_nx[0] or iy >= pages.level_ny[0]:
+        return math.nan
+    page = _page_of(pages, 0, ix, iy)
+    if page < 0:
+        return math.nan
+    mask = (1 << pages.log2_page) - 1
+    return _corner_z(pages, page, iy & mask, ix & mask, x / d - ix, y / d - iy)
+
+
+@njit(cache=True, inline="always")
+def _flat_cell(pages, x0, y0, fw, fh, max_slope):
+    """Whether the field cell of database-relative corner (x0, y0), fw x fh metres, is gentle
+    enough to plough: its corners within max_slope (tangent) of its centre's height, along
+    the half-diagonal."""
+    zc = _level0_z(pages, x0 + 0.5 * fw, y0 + 0.5 * fh)
+    if math.isnan(zc):
+        return False
+    reach = max_slope * 0.5 * math.sqrt(fw * fw + fh * fh)
+    for q in range(4):
+        z = _level0_z(pages, x0 + (q & 1) * fw, y0 + (q >> 1) * fh)
+        if not abs(z - zc) <= reach:  # NaN (off the database) is not flat either
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _shows(t, c, fp, across):
+    """Whether any texture of class row c's code still shows at a footprint whose larger side
+    is fp and whose side across the line is across (metres): below one of its fade-outs."""
+    for k in range(3):
+        o = c + T_CLASS_FADE + 2 * k
+        if fp < t[o] and across < t[o + 1]:
+            return True
+    return False
+
+
+# Inlined into _through_air, its one caller.
+@njit(cache=True, inline="always")
+def _detail(ln, detail, pages, st, h, v, rng, slope, graze, w, r, g, b):
+    """The step's premultiplied colour (r, g, b), coverage w, with the land's detail where its
+    centre ray meets the ground (docs/terrain.md "Detail"): the land class's colour and texture
+    code over the relief colour, fields and their hedges, and the airfield pads' grass feathered
+    into it.
+
+    The texture's footprint is the step's: across the line, the step's angle at the range
+    1/ir; along it, that stretched by the ground's slant to the ray (the segment the step ends
+    on). Beyond the range where a class's texture code has faded out entirely (its fade-out
+    footprint, TerrainDetail.table), no texture is read.
+    """
+    t = detail.table
+    # The store alone goes into the samplers' calls (by value, at every read).
+    store = TextureArrays(detail.texels, detail.level, detail.levels, detail.finest)
+    norm2 = h * h + v * v  # guard: _direction never returns (0, 0)
+    norm = math.sqrt(norm2)
+    rc = rng * h / norm
+    x = t[T_ORIGIN] + ln.ex + rc * ln.dx
+    y = t[T_ORIGIN + 1] + ln.ey + rc * ln.dy
+    # The step's angle: the directions at s and s + 1 are affine in s, so their cross product
+    # is the constant h0 z1 - z0 h1; over |d|^2 at the step's centre it is the angle's sine.
+    across = max(rng * abs(ln.h0 * ln.z1 - ln.z0 * ln.h1) / norm2, 1e-6)  # floor: a footprint
+    along = across / max(graze, 1e-3)  # guard: a ray along the ground
+    fp = max(along, across)
+    # The pads: weight 1 inside, smoothstep down to 0 over the blend outside.
+    wp = 0.0
+    for k in range(int(t[T_PADS_N])):
+        o = int(t[T_PADS_AT]) + 5 * k
+        ddx = max(max(t[o] - x, x - t[o + 2]), 0.0)
+        ddy = max(max(t[o + 1] - y, y - t[o + 3]), 0.0)
+        if ddx == 0.0 and ddy == 0.0:
+            wp = 1.0
+            break
+        if ddx < t[o + 4] and ddy < t[o + 4]:
+            d = math.sqrt(ddx * ddx + ddy * ddy)
+            if d < t[o + 4]:
+                q = 1.0 - d / t[o + 4]  # guard: d < blend means blend > 0
+                wp = max(wp, q * q * (3.0 - 2.0 * q))
+    gr = r
+    gg = g
+    gb = b
+    if wp < 1.0:
+        c = T_CLASSES + GRASS * T_CLASS_N
+        tr = t[c + 1]
+        tg = t[c + 2]
+        tb = t[c + 3]
+        hr = 1.0
+        hg = 1.0
+        hb = 1.0
+        swap = False
+        if slope > t[T_ROCK_SLOPE]:
+            c = T_CLASSES + ROCK * T_CLASS_N
+            tr = t[c + 1]
+            tg = t[c + 2]
+            tb = t[c + 3]
+        elif t[T_FIELDS_N] > 0.0:
+            # Fields: cells of the land in columns T_FIELD_W wide, each column's rows shifted by
+            # its own offset (a patchwork, not a chequerboard); a cell is a field for a share
+            # T_FIELD_SHARE of those gentle enough to plough (_flat_cell), of a kind and a row
+            # direction its hash picks. Whole cells, so that fields are rectangles with
+            # hedges round them, not the voxels of a slope threshold.
+            fw = t[T_FIELD_W]
+            fh = t[T_FIELD_H]
+            ci = int(math.floor(x / fw))  # guard: the cell sizes are > 0 (terrain.py)
+            shift = (_hash(ci, 7919) & 0xFFFF) * (1.0 / 65536.0) * fh
+            cj = int(math.floor((y + shift) / fh))
+            hsh = _hash(ci, cj)
+            if st[_CELL_FIELD] < 0.0 or st[_CELL_I] != ci or st[_CELL_J] != cj:
+                # A line crosses a cell in many steps: its verdict is kept for the next.
+                st[_CELL_I] = ci
+                st[_CELL_J] = cj
+                field = (hsh & 0xFFFF) * (1.0 / 65536.0) < t[T_FIELD_SHARE] and _flat_cell(
+                    pages, ci * fw - t[T_ORIGIN], cj * fh - shift - t[T_ORIGIN + 1], fw, fh, t[T_FIELD_SLOPE])
+                st[_CELL_FIELD] = 1.0 if field else 0.0
+            if st[_CELL_FIELD] > 0.0:
+                c = T_CLASSES + FIELD * T_CLASS_N
+                f = T_FIELDS + 3 * ((hsh >> 16) % int(t[T_FIELDS_N]))
+                tr = t[f]
+                tg = t[f + 1]
+                tb = t[f + 2]
+                swap = ((hsh >> 24) & 1) == 1  # rows along x instead of y: u and v swapped
+                # Hedges: a band along the cell's edges, filtered to the footprint.
+                ex_ = min(x - ci * fw, (ci + 1) * fw - x)
+                ey_ = min(y + shift - cj * fh, (cj + 1) * fh - (y + shift))
+                cover = max(_band_cover(ex_, t[T_HEDGE_M], fp), _band_cover(ey_, t[T_HEDGE_M], fp))
+                hr = 1.0 + cover * (t[T_HEDGE] - 1.0)
+                hg = 1.0 + cover * (t[T_HEDGE + 1] - 1.0)
+                hb = 1.0 + cover * (t[T_HEDGE + 2] - 1.0)
+        mr = 1.0
+        mg = 1.0
+        mb = 1.0
+        look = int(t[c])
+        if look >= 0 and _shows(t, c, fp, across):
+            ux = ln.dx * along
+            vx = ln.dy * along
+            uy = -ln.dy * across
+            vy = ln.dx * across
+            if swap:
+                mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, y, x,
+                                                uy, vy, ux, vx)
+            else:
+                mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, x, y,
+                                                ux, vx, uy, vy)
+        # The class's colour takes the share mix of the relief colour's hue, keeping its
+        # brightness (its hill-shading) relative to the relief's mean.
+        mix = t[c + 4]
+        k = (0.2126 * r + 0.7152 * g + 0.0722 * b) * mix / t[T_LUM_REF]  # guard: terrain.py keeps it > 0
+        gr = ((1.0 - mix) * r + k * tr) * hr * mr
+        gg = ((1.0 - mix) * g + k * tg) * hg * mg
+        gb = ((1.0 - mix) * b + k * tb) * hb * mb
+    if wp > 0.0:
+        c = T_CLASSES + PAD * T_CLASS_N
+        mr = 1.0
+        mg = 1.0
+        mb = 1.0
+        look = int(t[c])
+        if look >= 0 and _shows(t, c, fp, across):
+            mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, x, y,
+                                            ln.dx * along, ln.dy * along, -ln.dy * across, ln.dx * across)
+        # The pad's lit colour, premultiplied by the step's coverage like r, g, b.
+        gr = (1.0 - wp) * gr + wp * w * t[c + 1] * mr
+        gg = (1.0 - wp) * gg + wp * w * t[c + 2] * mg
+        gb = (1.0 - wp) * gb + wp * w * t[c + 3] * mb
+    return gr, gg, gb
 
 
 @borrowing
@@ -280,7 +545,7 @@ def _emit(st, ln, air, buf, colours, a, b, tb, seg, paint, c_a, c_b):
         top = row + 1.0
         if a >= top:
             # A gap below the part (a horizon rounded up): the step keeps what it has.
-            _finish_step(st, ln, air, buf)
+            _finish_step(st, ln, air, buf, colours)
             row += 1
             continue
         st[_R1] = seg[0]
@@ -304,7 +569,7 @@ def _emit(st, ln, air, buf, colours, a, b, tb, seg, paint, c_a, c_b):
             hh, vv = _direction(ln, centre)
             st[_IR] = _inverse_range_at(hh, vv, seg)
         if e >= top:
-            _finish_step(st, ln, air, buf)
+            _finish_step(st, ln, air, buf, colours)
             row += 1
         # The rest of the part starts at e with the colour there.
         a = e
@@ -393,7 +658,7 @@ def _page_of(pages, level, ix, iy):
 
 
 @njit(cache=True, parallel=True)
-def cast_kernel(pages, fan, limits, air, frame, sky, out, aux, visits, threads):
+def cast_kernel(pages, detail, fan, limits, air, frame, sky, out, aux, visits, threads):
     """The terrain of every pixel: one radial scan per line of the fan (JP H07-76990's column
     scan along the screen line of one vertical half-plane), emitted straight into the pixels
     the line owns, over the sky or earth plane (sky: _sky_kernels.SkyTable).
@@ -410,6 +675,7 @@ def cast_kernel(pages, fan, limits, air, frame, sky, out, aux, visits, threads):
 
     Args:
         pages: the terrain database (VoxelPages).
+        detail: the land's detail (TerrainDetail; detail.on False: none).
         fan: the lines (LineFan, fan.py).
         limits: the eye (database-relative) and the scan's ranges (ScanLimits).
         air: the frame's air array (haze, then fog; contract.py).
@@ -457,7 +723,7 @@ def cast_kernel(pages, fan, limits, air, frame, sky, out, aux, visits, threads):
                         if f >= 0.0:
                             k_lo = f if k_lo < 0.0 else min(k_lo, f)
                             k_hi = max(k_hi, meta[nb % 3, _M_LAST])
-                used = _line(j, int(k_lo), int(k_hi), st, buf[j % 3], meta[j % 3], pages, fan,
+                used = _line(j, int(k_lo), int(k_hi), st, buf[j % 3], meta[j % 3], pages, detail, fan,
                              limits, air, frame)
                 if start <= j < end:
                     visits[j] = used
@@ -477,7 +743,7 @@ def _own(i, fan, frame, own, meta):
 
 
 @borrowing
-def _line(i, lo_k, hi_k, st, buf, meta, pages, fan, limits, air, frame):
+def _line(i, lo_k, hi_k, st, buf, meta, pages, detail, fan, limits, air, frame):
     """Cast line i of cast_kernel over its steps lo_k .. hi_k into its buffer buf, with st as
     its scan state, and note the steps walked in its record meta; returns the voxels
     visited."""
@@ -512,18 +778,22 @@ def _line(i, lo_k, hi_k, st, buf, meta, pages, fan, limits, air, frame):
     z_hi = z0 + z1 * n
     tan_hi = (z_hi / h_hi) if h_hi > 1e-12 * (abs(h_hi) + abs(z_hi)) else math.inf
     axh = air[F_WORLD_AXIS] * sphi + air[F_WORLD_AXIS + 1] * cphi
-    ln = _Line(h0, h1, z0, z1, n, tan_lo, tan_hi, axh)
+    ln = _Line(h0, h1, z0, z1, n, tan_lo, tan_hi, axh, sphi, cphi, limits.eye[0], limits.eye[1])
+    colours = _Colours(pages.rgb, pages.lut)
     for q in range(_STATE):
         st[q] = 0.0
     st[_ROW] = lo_k
+    st[_DETAIL] = 1.0 if detail.on else 0.0
     hh, vv = _direction(ln, float(lo_k))
     tan_start = _tan_of(hh, vv) if lo_k > 0 else tan_lo
     st[_TANMAX] = tan_start
     st[_SMAX] = float(lo_k)
-    used = _walk(st, ln, buf, hi_k, sphi, cphi, pages, limits, tan_start, air)
+    used = _walk(st, ln, buf, hi_k, sphi, cphi, pages, colours, limits, tan_start, air)
     # The step the scan stopped in holds what covered it so far (a silhouette).
     if int(st[_ROW]) <= hi_k and st[_AW] > 0.0:
-        _finish_step(st, ln, air, buf)
+        _finish_step(st, ln, air, buf, colours)
+    st[_CELL_FIELD] = -1.0  # no field cell looked at yet on this line
+    _through_air(ln, buf, lo_k, int(st[_ROW]), air, detail, pages, st)
     # Steps the scan never reached see no terrain. The first of them keeps the last surface's
     # depth continued (with no coverage): the pixels and samples beside it interpolate
     # between it and the last covered one, exact for planar ground up to the edge.
@@ -726,7 +996,7 @@ def _world_at(fan, frame, wedge, p, q):
 
 
 @borrowing
-def _walk(st, ln, buf, last_k, dx, dy, pages, limits, tan_lo, air):
+def _walk(st, ln, buf, last_k, dx, dy, pages, colours, limits, tan_lo, air):
     """Walk the line's ground line (direction (dx, dy), east and north) from the start point,
     emitting into its steps until the last it owns (last_k) is covered; returns the voxels
     visited."""
@@ -734,8 +1004,8 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, limits, tan_lo, air):
     ey = limits.eye[1]
     ez = limits.eye[2]
     r_switch = limits.r_switch
-    colours = _Colours(pages.rgb, pages.lut)
     spacing = pages.spacing
+    detail_on = st[_DETAIL] != 0.0
     log2_page = pages.log2_page
     pages_x = pages.pages_x
     level_nx = pages.level_nx
@@ -881,6 +1151,7 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, limits, tan_lo, air):
             last = pages.pat_bands[k] - 1
             c_top = _rgb64(pages.pat_rgb[k, last])
             if lo > r_next * tan_max:
+                st[_GROUND] = 0.0
                 _surface(st, ln, air, buf, colours, (r, lo, r_next, lo), math.nan,
                          _Paint(-1, 0, 0, 0.0, 0.0, 0.0, 0.0, c_top), c_top, c_top)
                 tan_max = st[_TANMAX]
@@ -898,6 +1169,14 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, limits, tan_lo, air):
                     c_in = _voxel_rgb(colours, page, vy, vx, u0, v0)
                 c_out = _voxel_rgb(colours, page, vy, vx, u1, v1)
                 seg = (r, z_in, r_next, z_out)
+                st[_GROUND] = 1.0
+                if detail_on:
+                    # The voxel's slope from its corners' bilinear surface (corner q at u = q & 1,
+                    # v = q >> 1): its mean gradient. Guard: inv_d = 1 / d_l > 0.
+                    zc = pages.z[page, vy, vx]
+                    gx = 0.5 * ((zc[1] - zc[0]) + (zc[3] - zc[2])) * inv_d
+                    gy = 0.5 * ((zc[2] - zc[0]) + (zc[3] - zc[1])) * inv_d
+                    st[_SLOPE] = math.sqrt(gx * gx + gy * gy)
                 t2 = _tan_of(r_next, z_out)
                 sb = _s_of_tan(ln, t2) if t_in == tan_max and t2 > tan_max else -1.0
                 if sb >= 0.0 and sb < st[_ROW] + 1.0:
@@ -964,6 +1243,7 @@ def _wall(st, ln, air, buf, colours, r, z_lo, z_hi, rgb):
     tmax = st[_TANMAX]
     if tb <= tmax:
         return
+    st[_GROUND] = 0.0
     ta = _tan_of(r, z_lo)
     sa = st[_SMAX] if ta <= tmax else _s_of_tan(ln, ta)
     _emit(st, ln, air, buf, colours, sa, _s_of_tan(ln, tb), tb, (r, z_lo, r, z_hi),

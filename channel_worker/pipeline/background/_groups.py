@@ -5,8 +5,9 @@ Background); the groups here never leave the background stage. Each is a NamedTu
 and numbers, which numba passes whole into a kernel, so every kernel's signature says at a
 glance what it consumes:
 
-    cast_kernel(pages: VoxelPages, fan: LineFan, limits: ScanLimits, air, frame,
-                sky: SkyTable, out: BackgroundArrays, aux: CastPixels, visits, threads)
+    cast_kernel(pages: VoxelPages, detail: TerrainDetail, fan: LineFan, limits: ScanLimits,
+                air, frame, sky: SkyTable, out: BackgroundArrays, aux: CastPixels, visits,
+                threads)
     sample_depth_kernel(frame, aux: CastPixels, depth: SampleDepth, out_inv_z, threads)
     scan_clouds_kernel(slabs: CloudSlabs, columns: CloudColumns, eye, r_far, air, out)
     cloud_over_kernel(frame, clouds: CloudImage, block, range_m, rgb, out_cloud, threads)
@@ -127,6 +128,58 @@ class ScanLimits(NamedTuple):
     eye: np.ndarray
     r_switch: np.ndarray
     r_far: float
+
+
+#: The land classes of TerrainDetail.table.
+GRASS, FIELD, ROCK, PAD = 0, 1, 2, 3
+LAND_CLASSES = 4
+#: Where the values sit in TerrainDetail.table (one array: the cast passes it down its calls
+#: whole, and fewer arrays are fewer arguments).
+T_ORIGIN = 0  # 2: world x, y of the database origin (texture coordinates are world metres)
+T_ROCK_SLOPE = 2  # slope (tangent) above which the ground is rock
+T_FIELD_SLOPE = 3  # slope (tangent) within which a field cell's corners lie from its centre
+T_FIELD_SHARE = 4  # share (0..1) of the field cells that hold a field
+T_FIELD_W = 5  # field cell width (east), metres, > 0
+T_FIELD_H = 6  # field cell height (north), metres, > 0
+T_HEDGE_M = 7  # half-width of the hedge along a field's edge, metres
+T_LUM_REF = 8  # the relief colours' mean luminance (linear), > 0
+T_HEDGE = 9  # 3: a hedge's colour factor on its field
+T_CLASSES = 12  # LAND_CLASSES rows of T_CLASS_N, below
+#: A class's row: look row (-1: none), linear colour r, g, b, the share (mix) of the relief's
+#: hue it takes keeping the relief's brightness (PAD: its lit colour, taken whole), then for each
+#: of its code's textures (MAX_CODE_TEXTURES) the footprints (metres) from which it has faded
+#: out: the pixel's larger side, and its side across the line (inf: never; terrain.fade_outs).
+T_CLASS_FADE = 5
+T_CLASS_N = T_CLASS_FADE + 2 * 3
+T_FIELDS_N = T_CLASSES + LAND_CLASSES * T_CLASS_N  # how many kinds of field
+T_PADS_N = T_FIELDS_N + 1  # how many pads
+T_PADS_AT = T_PADS_N + 1  # where the pads start: 5 each (x0, y0, x1, y1, blend_m), world metres
+T_FIELDS = T_PADS_AT + 1  # 3 per kind of field: its linear colour; the pads follow
+
+
+class TerrainDetail(NamedTuple):
+    """The land's detail over the terrain's relief colour (terrain.terrain_detail; docs/terrain.md
+    "Detail"): land classes, each with a colour and a texture code of the scene, fields and
+    hedges, and the airfield pads' grass.
+
+    Attributes:
+        on: whether the cast draws any detail (False: it pays nothing for it).
+        texels, level, levels, finest: the scene's texture store (FrameConstants' tex_*), as
+            texture_sampling.TextureArrays names them (not one nested group: numba's parallel
+            loops take no group within a group).
+        looks: (L, LOOK_SLOTS) float64 the scene's look table.
+        texture_filter: the frame's texture filter (FrameConstants.texture_filter).
+        table: float64 every other value, at the T_* positions.
+    """
+
+    on: bool
+    texels: np.ndarray
+    level: np.ndarray
+    levels: np.ndarray
+    finest: np.ndarray
+    looks: np.ndarray
+    texture_filter: int
+    table: np.ndarray
 
 
 class CastPixels(NamedTuple):

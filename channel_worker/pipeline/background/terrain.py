@@ -24,11 +24,46 @@ import numpy as np
 from channel_worker.pipeline.contract import FrameConstants, View
 from channel_worker.pipeline.fog.fog import average_floor
 from channel_worker.pipeline.scene.database import Database
+from channel_worker.pipeline.scene.surfaces import (
+    LOOK_AMPLITUDE,
+    LOOK_DETAIL,
+    LOOK_PRIMARY,
+    LOOK_TEXTURE,
+    MAX_CODE_TEXTURES,
+)
 from channel_worker.pipeline.scene.terrain.database import TerrainDatabase
+from channel_worker.pipeline.scene.texture_sampling import FADE
 from services.rig.colour import srgb_to_linear
 
 from ._cast_kernels import cast_kernel
-from ._groups import BackgroundArrays, CastPixels, ScanLimits, SkyTable, VoxelPages
+from ._groups import (
+    FIELD,
+    GRASS,
+    LAND_CLASSES,
+    PAD,
+    T_CLASS_N,
+    T_CLASSES,
+    T_FIELD_H,
+    T_FIELD_SHARE,
+    T_FIELD_SLOPE,
+    T_FIELD_W,
+    T_FIELDS,
+    T_FIELDS_N,
+    T_HEDGE,
+    T_HEDGE_M,
+    T_LUM_REF,
+    T_ORIGIN,
+    T_PADS_AT,
+    T_PADS_N,
+    T_ROCK_SLOPE,
+    BackgroundArrays,
+    CastPixels,
+    ScanLimits,
+    SkyTable,
+    TerrainDetail,
+    VoxelPages,
+)
+from ._groups import ROCK as ROCK_CLASS
 from .fan import line_fan
 from .haze import OPAQUE_TAU, beta_at
 
@@ -36,6 +71,29 @@ from .haze import OPAQUE_TAU, beta_at
 #: terrain scan (metres): the picture stays defined instead of turning inside out. Counted in
 #: the counter "terrain_eye_clamped".
 MIN_CLEARANCE_M = 0.01
+
+#: The land's detail (docs/terrain.md "Detail"). Rock where the ground is steeper than 31
+#: degrees; fields in 55 % of the cells of a patchwork 210 m x 160 m (the size of the small
+#: fields of a hill farm) whose corners lie within 8 degrees of their centre, with 4 m of
+#: hedge along the inside of its edges.
+ROCK_SLOPE = math.tan(math.radians(31.0))
+FIELD_SLOPE = math.tan(math.radians(8.0))
+FIELD_SHARE = 0.55
+FIELD_M = (210.0, 160.0)
+HEDGE_HALF_M = 4.0
+
+
+def _srgb(*hexes: str) -> np.ndarray:
+    return srgb_to_linear(np.array([[int(h[i:i + 2], 16) for i in (1, 3, 5)] for h in hexes]) / 255.0)
+
+
+#: The classes' colours (sRGB, lit by the scene's light on level ground, as the pads' grass)
+#: and the share of the relief colour's hue each takes: meadow, rock; the kinds of field (ripe
+#: cereal, stubble, ploughed soil, young crop, hay meadow); a hedge's factor on its field.
+MEADOW, MEADOW_MIX = _srgb("#6a8c40")[0], 0.8
+ROCK, ROCK_MIX = _srgb("#8c8a84")[0], 0.85
+FIELDS, FIELD_MIX = _srgb("#c2a85a", "#b5a77a", "#7d6347", "#88a648", "#a3a35c"), 0.9
+HEDGE_FACTOR = np.array([0.36, 0.48, 0.3])
 
 #: sRGB-encoded byte -> linear, for the database's uint8 colours.
 _SRGB_LUT = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
@@ -76,8 +134,8 @@ def cast_terrain(database: Database, view: View, frame: FrameConstants, air: np.
     visits = np.zeros(fan.aim.shape[0], np.int64)
     limits = ScanLimits(eye, _level_switch(terrain, view, eye, level_bias),
                         _far_range(database, terrain, view))
-    cast_kernel(voxel_pages(terrain), fan, limits, air, frame, sky, out, aux, visits,
-                numba.get_num_threads())
+    cast_kernel(voxel_pages(terrain), terrain_detail(database, frame), fan, limits, air, frame, sky, out,
+                aux, visits, numba.get_num_threads())
     counters["terrain_voxels"] = int(visits.sum())
     counters["terrain_lines"] = int(fan.aim.shape[0])
 
@@ -102,6 +160,74 @@ def voxel_pages(terrain: TerrainDatabase) -> VoxelPages:
                       terrain.table_offset, terrain.pages_x, terrain.pages_y, log2_page, level_nx,
                       level_ny, float(terrain.spacing_m), float(nx), float(ny),
                       float(terrain.z_max), pat_top, pat_rgb, pat_bands, _SRGB_LUT)
+
+
+def terrain_detail(database: Database, frame: FrameConstants) -> TerrainDetail:
+    """The land's detail as the cast reads it (TerrainDetail), from the scene's terrain.detail;
+    off (and free) when the scene has none."""
+    land = database.terrain_land
+    terrain = database.terrain
+    on = land is not None and terrain is not None
+    # Lit as the airfield's grass faces are (geometry's face light: a horizontal face, normal
+    # up), so that the land around the pads and the pads' grass agree.
+    light = database.ambient + (1.0 - database.ambient) * min(max(float(database.sun[2]), 0.0), 1.0)
+    fields = FIELDS * light if land is not None and on and land.field >= 0 else np.zeros((0, 3))
+    pads = np.asarray(land.pads, np.float64).reshape(-1, 5) if land is not None and on else np.zeros((0, 5))
+    t = np.zeros(T_FIELDS + fields.size + pads.size)
+    if terrain is not None:
+        t[T_ORIGIN:T_ORIGIN + 2] = terrain.origin[:2]
+    t[T_ROCK_SLOPE], t[T_FIELD_SLOPE], t[T_FIELD_SHARE] = ROCK_SLOPE, FIELD_SLOPE, FIELD_SHARE
+    t[T_FIELD_W], t[T_FIELD_H], t[T_HEDGE_M] = FIELD_M[0], FIELD_M[1], HEDGE_HALF_M
+    t[T_LUM_REF] = 1.0
+    t[T_HEDGE:T_HEDGE + 3] = HEDGE_FACTOR
+    for k in range(LAND_CLASSES):
+        t[T_CLASSES + k * T_CLASS_N] = -1.0
+    if land is not None and on:
+        rows = {GRASS: (land.grass, MEADOW * light, MEADOW_MIX), FIELD: (land.field, np.zeros(3), FIELD_MIX),
+                ROCK_CLASS: (land.rock, ROCK * light, ROCK_MIX),
+                PAD: (land.pad, np.asarray(land.pad_colour, np.float64) * light, 1.0)}
+        for k, (look, colour, mix) in rows.items():
+            c = T_CLASSES + k * T_CLASS_N
+            t[c:c + T_CLASS_N] = (look, *colour, mix, *fade_outs(frame, look))
+        t[T_LUM_REF] = land.relief_luminance
+    t[T_FIELDS_N], t[T_PADS_N], t[T_PADS_AT] = len(fields), len(pads), T_FIELDS + fields.size
+    t[T_FIELDS:T_FIELDS + fields.size] = fields.ravel()
+    t[T_FIELDS + fields.size:] = pads.ravel()
+    return TerrainDetail(on, frame.texels, frame.tex_level, frame.tex_levels, frame.tex_finest, frame.looks,
+                         int(frame.texture_filter), t)
+
+
+def fade_outs(frame: FrameConstants, look: int) -> list[float]:
+    """For each texture of code `look` (MAX_CODE_TEXTURES, in order), the footprints from which
+    it shows nothing under the fade filter, as (the pixel's larger side, its side across the
+    line) in metres of the texture plane: past either, its finest frequency has reached the
+    sampling's Nyquist frequency (texture_sampling.fade_amplitude: 2 finest rho >= 1, rho the
+    larger side in texels). With texels per metre tw, th along the texture's axes and the
+    pixel's sides along >= across (perpendicular): rho >= along min(tw, th), and rho^2 >=
+    (side_x^2 + side_y^2) / 2 >= across^2 (tw^2 + th^2) / 2. inf where it never fades out: a
+    missing or silent texture, one without contrast, a filter other than fade (its pyramid
+    reads go on)."""
+    out = [-1.0] * (2 * MAX_CODE_TEXTURES)  # no texture: never shows
+    if look < 0:
+        return out
+    fade = int(frame.texture_filter) == FADE
+    row = frame.looks[look]
+    for k in range(MAX_CODE_TEXTURES):
+        tex = int(row[LOOK_TEXTURE + k])
+        if tex < 0:
+            break
+        if k > 0 and row[LOOK_AMPLITUDE + k - 1] == 0.0:
+            continue  # silenced: texture_modulation reads nothing
+        ru, rv = (row[LOOK_PRIMARY], row[LOOK_PRIMARY + 1]) if k == 0 else (row[LOOK_DETAIL], row[LOOK_DETAIL + 1])
+        tw = ru * (1 << int(frame.tex_level[tex, 0, 1]))
+        th = rv * (1 << int(frame.tex_level[tex, 0, 2]))
+        finest = float(frame.tex_finest[tex])
+        if not fade or finest <= 0.0 or min(tw, th) <= 0.0:
+            out[2 * k:2 * k + 2] = [math.inf, math.inf]
+            continue
+        limit = 1.0 / (2.0 * finest)  # rho (texels) at which the fade reaches 0
+        out[2 * k:2 * k + 2] = [limit / min(tw, th), limit * math.sqrt(2.0) / math.hypot(tw, th)]
+    return out
 
 
 def _level_switch(terrain: TerrainDatabase, view: View, eye: np.ndarray,

@@ -115,6 +115,31 @@ class FaceTable(NamedTuple):
 
 
 @dataclass(frozen=True)
+class TerrainLand:
+    """The scene's "terrain.detail" (docs/scene-format.md): the texture codes of the land classes
+    drawn over the terrain's relief colour, and the airfield pads' grass.
+
+    Attributes:
+        grass, field, rock: the look-table rows of the classes' texture codes (-1: none).
+        pad: the look-table row of the pads' texture code (-1: none).
+        pad_colour: (3,) float32 linear RGB of the pads' grass (the airfield's grass faces'
+            colour, lit in the cast as they are: a horizontal face in the scene's light).
+        pads: (N, 5) float64 pads (x0, y0, x1, y1, blend_m), world metres: the terrain
+            database's flattened pads (its recipe's "flatten") moved by the terrain's offset.
+        relief_luminance: the mean linear luminance of the terrain's level-0 colours (> 0):
+            a class's colour keeps the relief's brightness relative to it.
+    """
+
+    grass: int
+    field: int
+    rock: int
+    pad: int
+    pad_colour: np.ndarray
+    pads: np.ndarray
+    relief_luminance: float
+
+
+@dataclass(frozen=True)
 class Database:
     """The loaded scene.
 
@@ -134,6 +159,7 @@ class Database:
         terrain: the voxel terrain, or None.
         terrain_margin_m: a polygon within this height above or below the terrain surface is
             drawn in front of it (a runway on its pad), metres.
+        terrain_land: the land's detail over the terrain (TerrainLand), or None: none drawn.
         haze, clouds, fog: the scene's atmosphere (atmosphere.py), each None when absent.
         textures: the texture stores the scene's texture codes name (textures.py).
 
@@ -156,6 +182,7 @@ class Database:
     source: str = ""
     terrain: TerrainDatabase | None = None
     terrain_margin_m: float = 1.0
+    terrain_land: TerrainLand | None = None
     haze: Haze | None = None
     clouds: Clouds | None = None
     fog: Fog | None = None

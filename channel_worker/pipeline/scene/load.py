@@ -15,7 +15,7 @@ from services.rig.colour import srgb_to_linear
 from services.rig.frame import hpr_matrix
 
 from .atmosphere import KOSCHMIEDER, MAX_FOG_PLANES, Clouds, Fog, Haze, cloud_layer
-from .database import Database, FaceTable, Model
+from .database import Database, FaceTable, Model, TerrainLand
 from .surfaces import (
     DEFAULT_CREASE_DEG,
     CodeParser,
@@ -356,7 +356,7 @@ class _Parser:
         from channel_worker.pipeline.scene.terrain.database import TerrainError
         from channel_worker.pipeline.scene.terrain.store import load_terrain
 
-        doc = self.obj(doc, "terrain", {"database"}, {"offset_m", "polygon_margin_m"})
+        doc = self.obj(doc, "terrain", {"database"}, {"offset_m", "polygon_margin_m", "detail"})
         name = doc["database"]
         if not isinstance(name, str) or not name:
             raise self.fail("terrain.database", f"expected a path or 'bundled:NAME', got {_show(name)}")
@@ -374,7 +374,38 @@ class _Parser:
         offset = self.vec3(doc.get("offset_m", [0.0, 0.0, 0.0]), "terrain.offset_m")
         margin = self.number(doc.get("polygon_margin_m", 1.0), "terrain.polygon_margin_m", 0.0, 100.0)
         db = dataclasses.replace(db, origin=np.asarray(db.origin, np.float64) + offset)
-        return {"terrain": db, "terrain_margin_m": margin}
+        land = self.terrain_detail(doc.get("detail"), db, offset)
+        return {"terrain": db, "terrain_margin_m": margin, "terrain_land": land}
+
+    def terrain_detail(self, doc: Any, db: Any, offset: np.ndarray) -> TerrainLand | None:
+        """The optional "terrain.detail" key: texture codes per land class and the pads' grass."""
+        if doc is None:
+            return None
+        doc = self.obj(doc, "terrain.detail", set(), {"grass", "field", "rock", "pad"})
+        looks = {}
+        for key in ("grass", "field", "rock"):
+            code = doc.get(key)
+            if code is not None and not isinstance(code, str):
+                raise self.fail(f"terrain.detail.{key}", f"expected a texture code's name, got {_show(code)}")
+            looks[key] = self.codes.look(code, False, f"terrain.detail.{key}")[0]
+        pad_look, pad_colour = -1, np.zeros(3, np.float32)
+        pads = np.zeros((0, 5))
+        if "pad" in doc:
+            pad = self.obj(doc["pad"], "terrain.detail.pad", {"colour"}, {"code"})
+            code = pad.get("code")
+            if code is not None and not isinstance(code, str):
+                raise self.fail("terrain.detail.pad.code", f"expected a texture code's name, got {_show(code)}")
+            pad_look = self.codes.look(code, False, "terrain.detail.pad.code")[0]
+            pad_colour = self.colour(pad["colour"], "terrain.detail.pad.colour")
+            flatten = ((db.info or {}).get("recipe") or {}).get("flatten") or []
+            pads = np.array([[p[0] + offset[0], p[1] + offset[1], p[2] + offset[0], p[3] + offset[1], p[5]]
+                             for p in flatten], np.float64).reshape(-1, 5)
+        # The relief's mean brightness, from a sparse sample of the finest level's pages.
+        sample = np.asarray(db.rgb[::max(1, db.rgb.shape[0] // 16), ::8, ::8, 0], np.uint8)
+        linear = srgb_to_linear(sample.reshape(-1, 3) / 255.0)
+        lum = float(np.mean(linear @ np.array([0.2126, 0.7152, 0.0722])))
+        return TerrainLand(grass=looks["grass"], field=looks["field"], rock=looks["rock"], pad=pad_look,
+                           pad_colour=pad_colour, pads=pads, relief_luminance=max(lum, 1e-3))
 
     def haze(self, doc: Any) -> Haze | None:
         """The optional "haze" key."""

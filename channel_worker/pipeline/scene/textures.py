@@ -3,7 +3,7 @@
 After *An image generator* (docs/references.md): every texture lives in one store; a face
 carries a texture code naming up to three textures in priority order; a fine texture fades
 out as its finest spatial frequency approaches the sampling rate, so it never aliases. This
-module builds the store; shade/_texture_kernels.py samples it and computes the fade.
+module builds the store; texture_sampling.py samples it and computes the fade.
 
 What is stored is a modulation *signal*, not a colour: ``signal = rgb / mean_rgb - 1`` per
 channel, so a face of colour c shows ``c * (1 + signal)``: the image's relative contrast on

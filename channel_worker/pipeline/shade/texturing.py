@@ -20,31 +20,11 @@ parametrics*), or level 0 for as long as the fade keeps it and the pyramid beyon
 
 from __future__ import annotations
 
-import math
-
-import numpy as np
 from numba import njit
 
 from channel_worker.pipeline.jit import borrowing
-from channel_worker.pipeline.scene.surfaces import (
-    LOOK_AMPLITUDE,
-    LOOK_DETAIL,
-    LOOK_INTENSITY,
-    LOOK_OFFSET,
-    LOOK_PER_COLOUR,
-    LOOK_PRIMARY,
-    LOOK_SMOOTH,
-    LOOK_TEXTURE,
-    MAX_CODE_TEXTURES,
-)
-from services.rig.options import TEXTURE_FILTERS
-
-from ._texture_kernels import fade_amplitude, texel_bilinear, texel_trilinear, texture_lod
-
-#: The filters as the kernels get them (FrameConstants.texture_filter: the index of the name in
-#: the options' registry).
-_FADE = list(TEXTURE_FILTERS).index("fade")
-_MIPMAP = list(TEXTURE_FILTERS).index("mipmap")
+from channel_worker.pipeline.scene.surfaces import LOOK_SMOOTH, LOOK_TEXTURE
+from channel_worker.pipeline.scene.texture_sampling import texture_modulation
 
 
 @njit(cache=True, inline="always")
@@ -79,73 +59,11 @@ def surface_colour(sh, p, sx, sy, spacing, r, g, b):
         return r, g, b
     u = (m[0] * sx + m[1] * sy + m[2]) * w
     v = (m[3] * sx + m[4] * sy + m[5]) * w
-    # Metres of the texture plane per pixel step along screen x and y.
-    ux = (m[0] - u * a) * w
-    uy = (m[1] - u * bb) * w
-    vx = (m[3] - v * a) * w
-    vy = (m[4] - v * bb) * w
-    sr = 0.0
-    sg = 0.0
-    sb = 0.0
-    store = sh  # it has the TextureStore's fields (shading.Shading)
-    for k in range(MAX_CODE_TEXTURES):
-        t = int(row[LOOK_TEXTURE + k])
-        if t < 0:
-            break
-        if k == 0:
-            ru = row[LOOK_PRIMARY]
-            rv = row[LOOK_PRIMARY + 1]
-            ou = 0.0
-            ov = 0.0
-            amp = 1.0
-        else:
-            ru = row[LOOK_DETAIL]
-            rv = row[LOOK_DETAIL + 1]
-            ou = row[LOOK_OFFSET]
-            ov = row[LOOK_OFFSET + 1]
-            amp = row[LOOK_AMPLITUDE + k - 1]
-        tw = ru * (1 << store.level[t, 0, 1])  # texels per metre along u, v
-        th = rv * (1 << store.level[t, 0, 2])
-        tx = (u + ou) * tw
-        ty = (v + ov) * th
-        # The footprint: level-0 texels per spacing along the pixel's two sides.
-        side_x = spacing * math.sqrt((ux * tw) ** 2 + (vx * th) ** 2)
-        side_y = spacing * math.sqrt((uy * tw) ** 2 + (vy * th) ** 2)
-        rho = max(side_x, side_y)
-        # How much of the level-0 read to keep (the rest from the pyramid at the footprint)
-        # and the texture's amplitude: fade keeps level 0 and fades its amplitude, mipmap
-        # reads the pyramid, both keeps level 0 as far as the fade would and the pyramid
-        # beyond. One bilinear and one trilinear read in the code, whichever the filter.
-        fade = 1.0
-        keep = 1.0
-        if sh.texture_filter == _FADE:
-            fade = fade_amplitude(store.finest[t], rho)
-            if fade <= 0.0:
-                continue
-        elif sh.texture_filter == _MIPMAP:
-            keep = 0.0
-        else:
-            keep = fade_amplitude(store.finest[t], rho)
-        cr = 0.0
-        cg = 0.0
-        cb = 0.0
-        if keep > 0.0:
-            br, bg, bb = texel_bilinear(store, t, np.int64(0), tx, ty)
-            cr = keep * br
-            cg = keep * bg
-            cb = keep * bb
-        if keep < 1.0:
-            mr, mg, mb = texel_trilinear(store, t, tx, ty, texture_lod(rho))
-            cr += (1.0 - keep) * mr
-            cg += (1.0 - keep) * mg
-            cb += (1.0 - keep) * mb
-        amp *= fade
-        sr += amp * cr
-        sg += amp * cg
-        sb += amp * cb
-    intensity = row[LOOK_INTENSITY]
-    if row[LOOK_PER_COLOUR] != 0.0:
-        return (r * max(0.0, 1.0 + intensity * sr), g * max(0.0, 1.0 + intensity * sg),
-                b * max(0.0, 1.0 + intensity * sb))
-    mono = max(0.0, 1.0 + intensity * (sr + sg + sb) * (1.0 / 3.0))
-    return r * mono, g * mono, b * mono
+    # Metres of the texture plane per pixel step along screen x and y, times the footprint.
+    ux = (m[0] - u * a) * w * spacing
+    uy = (m[1] - u * bb) * w * spacing
+    vx = (m[3] - v * a) * w * spacing
+    vy = (m[4] - v * bb) * w * spacing
+    # sh has the TextureStore's fields (shading.Shading).
+    mr, mg, mb = texture_modulation(sh, row, sh.texture_filter, u, v, ux, vx, uy, vy)
+    return r * mr, g * mg, b * mb

@@ -10,13 +10,13 @@ from hypothesis import strategies as st
 from numba import njit, typeof
 
 from channel_worker.pipeline.jit import borrowing
-from channel_worker.pipeline.scene.textures import build_store, empty_store
-from channel_worker.pipeline.shade._texture_kernels import (
+from channel_worker.pipeline.scene.texture_sampling import (
     fade_amplitude,
     texel_bilinear,
     texel_trilinear,
     texture_lod,
 )
+from channel_worker.pipeline.scene.textures import build_store, empty_store
 
 
 def make_store():
