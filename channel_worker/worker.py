@@ -267,7 +267,13 @@ class ChannelWorker:
             if stop.is_set():  # SIGTERM arrived before the stream was registered for cancelling
                 stream.cancel()
             for response in stream:
-                mailbox.put(response.frame)
+                if response.HasField("frame"):
+                    mailbox.put(response.frame)
+                elif response.HasField("run_end"):
+                    # The stream's last message; the host's counters in it are for the compositor.
+                    status = response.run_end.host_status
+                    log.info("host run %s ended (%s) after %d frames", status.run_id,
+                             host_pb2.RunEndReason.Name(response.run_end.reason), status.frames_published)
             end = StreamEnd.RUN_OVER
         except grpc.RpcError as exc:
             code = exc.code()

@@ -48,6 +48,11 @@ _STOP_POLL_S = 0.1
 _HEALTH_POLL_S = 0.5
 _START_LOG_S = 10.0
 
+#: How a run ended (FramePublisher.end_reason): it published its last frame, or the stop event
+#: (SIGTERM) ended it first.
+COMPLETED = "completed"
+STOPPED = "stopped"
+
 
 class UnknownChannel(ValueError):
     """A subscription or acknowledgement named a channel that is not in the rig."""
@@ -197,6 +202,8 @@ class FramePublisher:
         #: Number of the last frame published (-1 before the first) and of the frame the swap
         #: barrier waits for.
         self._published = -1
+        #: How the run ended (COMPLETED or STOPPED), "" while it runs.
+        self.end_reason = ""
         self._lock = threading.Condition()
 
     @property
@@ -239,6 +246,12 @@ class FramePublisher:
                 self._subs.remove(sub)
                 self.status.queue_drops[sub.subscriber] = sub.dropped
                 self._lock.notify_all()
+
+    def wait_streams_ended(self, timeout_s: float) -> bool:
+        """Wait until no subscription is open (each stream has delivered the end of the run and
+        ended), at most timeout_s seconds; whether none is."""
+        with self._lock:
+            return self._lock.wait_for(lambda: not self._subs, timeout=timeout_s)
 
     def refuse(self, cause: str, message: str) -> None:
         """Count a refused request (GetHostStatus.requests_refused) and keep its message."""
@@ -316,6 +329,7 @@ class FramePublisher:
         finally:
             with self._lock:
                 self.status.finished = True
+                self.end_reason = STOPPED if stop.is_set() else COMPLETED
                 subs = list(self._subs)
             for sub in subs:
                 sub.close()

@@ -392,7 +392,10 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
 
     Subscribes again while the host is not up yet or the stream breaks. The host closing the
     stream normally means its run is over: the host's final counters go into the run's report,
-    the run is ended (Compositor.end_run) and, without once, the next run is waited for.
+    the run is ended (Compositor.end_run) and, without once, the next run is waited for. The
+    counters come with the stream's last message (RunEnd), however the host stopped; a stream
+    that ends without one (a host before issue 33) has them asked of GetHostStatus, which a host
+    stopped by SIGTERM may no longer answer.
     """
     with make_channel(host_address, security) as channel:
         stub = host_pb2_grpc.HostServiceStub(channel)
@@ -404,8 +407,13 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
             done = threading.Event()
             threading.Thread(target=_cancel_on_stop, args=(stream, stop, done), daemon=True).start()
             run_id, frames = "", 0
+            status: dict | None = None
             try:
                 for response in stream:
+                    if response.HasField("run_end"):
+                        status = host_status_doc(response.run_end.host_status)
+                        status["run_end"] = _END_REASONS.get(response.run_end.reason, "")
+                        continue
                     if run_id and response.frame.run_id != run_id:
                         # The host started a new run in the same stream (a CIGI host restarted):
                         # the run that ends gets the host's counters as they stand, as at the
@@ -421,7 +429,8 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
                 continue
             finally:
                 done.set()
-            status = _host_status(stub)
+            if status is None:
+                status = _host_status(stub)
             run_id = run_id or (status or {}).get("run_id", "")
             compositor.end_run(run_id, host_status=status, grace_s=grace_s)
             ended_any = True
@@ -433,13 +442,22 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
     return ended_any
 
 
+#: RunEnd.reason as the report says it (report["host"]["run_end"]).
+_END_REASONS = {host_pb2.RUN_END_REASON_COMPLETED: "completed", host_pb2.RUN_END_REASON_STOPPED: "stopped"}
+
+
 def _host_status(stub: host_pb2_grpc.HostServiceStub) -> dict | None:
-    """The host's counters for the report, None if it does not answer."""
+    """The host's counters for the report, asked of GetHostStatus; None if it does not answer."""
     try:
         s = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=RPC_DEADLINE_S)
     except grpc.RpcError as exc:
         log.warning("host status unavailable: %s", exc.code().name)
         return None
+    return host_status_doc(s)
+
+
+def host_status_doc(s: host_pb2.GetHostStatusResponse) -> dict:
+    """The host's counters as the report holds them (report["host"], docs/frame-lock.md)."""
     return {
         "run_id": s.run_id, "frames_published": s.frames_published,
         "eyepoints_rejected": s.eyepoints_rejected, "ack_timeouts": dict(s.ack_timeouts),

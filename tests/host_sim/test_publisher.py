@@ -5,7 +5,7 @@ import time
 
 import pytest
 
-from host_sim.publisher import ChannelTaken, FramePublisher, UnknownChannel
+from host_sim.publisher import STOPPED, ChannelTaken, FramePublisher, UnknownChannel
 from services.rig.frame import Eyepoint
 
 
@@ -154,6 +154,7 @@ def test_stop_interrupts_the_wait_for_subscribers():
     runner.join()
     status = pub.snapshot()
     assert status.finished and status.frames_published == 0
+    assert pub.end_reason == STOPPED
 
 
 def test_stop_interrupts_the_wait_for_acks():

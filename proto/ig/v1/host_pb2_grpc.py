@@ -57,7 +57,8 @@ class HostServiceServicer:
     """
 
     def SubscribeFrames(self, request, context):
-        """Streams every frame of the run to one subscriber, then ends.
+        """Streams every frame of the run to one subscriber, then the end of the run (RunEnd, the
+        host's final counters), then ends.
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
