@@ -62,6 +62,11 @@ class ChannelTaken(ValueError):
     """A second subscriber asked for a channel that already has one (two workers for one window)."""
 
 
+class RunOver(ValueError):
+    """A subscription after the run has ended: the host publishes nothing more and exits after
+    its linger."""
+
+
 class FrameOutOfRange(ValueError):
     """An acknowledgement of a frame number this run has not published."""
 
@@ -217,6 +222,7 @@ class FramePublisher:
 
         Raises:
             UnknownChannel: channel_name is neither "" nor a rig channel.
+            RunOver: the run has ended (counted in requests_refused as run_ended).
             ChannelTaken: channel_name already has an open subscription.
         """
         if channel_name and channel_name not in self.channels:
@@ -227,14 +233,21 @@ class FramePublisher:
             raise UnknownChannel(message)
         sub = Subscription(subscriber, channel_name)
         with self._lock:
+            if self.status.finished:
+                # A stream opened now would end at once, and its subscriber, taking that for the
+                # end of a run, would come straight back: refused instead, with a status that says
+                # why (services/rig/resubscribe.py). Counted; last_error keeps the last real problem.
+                refused = self.status.requests_refused
+                refused["run_ended"] = refused.get("run_ended", 0) + 1
+                raise RunOver(f"run_id {self.status.run_id!r} has ended ({self.status.frames_published} frames "
+                              f"published): this host takes no new subscription and exits shortly; "
+                              f"subscribe to the next run")
             taken = [s for s in self._subs if channel_name and s.channel_name == channel_name]
             if taken:
                 message = f"channel_name: {channel_name!r} already has a subscriber ({taken[0].subscriber})"
                 self.status.subscriptions_rejected += 1
                 self.status.last_error = message
                 raise ChannelTaken(message)
-            if self.status.finished:
-                sub.close()
             self._subs.append(sub)
             self._lock.notify_all()
         return sub

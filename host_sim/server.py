@@ -18,6 +18,7 @@ from .publisher import (
     FrameOutOfRange,
     FramePublisher,
     OtherRun,
+    RunOver,
     UnknownChannel,
 )
 
@@ -52,6 +53,10 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
         except ChannelTaken as exc:
             log.warning("subscription refused: %s", exc)
             context.abort(grpc.StatusCode.ALREADY_EXISTS, str(exc))
+        except RunOver as exc:
+            log.info("subscriber %s (channel %r) refused: %s", request.subscriber or context.peer(),
+                     request.channel_name, exc)
+            context.abort(grpc.StatusCode.FAILED_PRECONDITION, str(exc))
         log.info("subscriber %s (channel %r) joined", sub.subscriber, sub.channel_name)
         try:
             # The stream runs until the publisher closes the subscription, at the end of the run
@@ -144,7 +149,7 @@ def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
     """Serve the host on address and run the publisher until the run ends or stop is set.
 
     After a run that ends by itself it keeps answering for linger_s so that late
-    acknowledgements and status requests still succeed; stopped
+    acknowledgements and status requests still succeed, refusing new subscriptions; stopped
     (stop set: SIGTERM) it keeps answering only until every stream has delivered the end of the
     run, with the final counters (at most _STOP_DRAIN_S). Then it stops. eyepoints is what the
     publisher's source belongs to (HostServicer); security: mutual TLS or plaintext

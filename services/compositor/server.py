@@ -30,6 +30,7 @@ from services.rig.grpc_util import (
     make_server,
     set_not_serving,
 )
+from services.rig.resubscribe import RunEndedBackoff, run_ended
 from services.rig.rigfile import WireSpec
 from services.rig.shared_images import SharedImageReader, shared_memory_supported
 
@@ -397,6 +398,7 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
     that ends without one (a host before issue 33) has them asked of GetHostStatus, which a host
     stopped by SIGTERM may no longer answer.
     """
+    backoff = RunEndedBackoff()
     with make_channel(host_address, security) as channel:
         stub = host_pb2_grpc.HostServiceStub(channel)
         ended_any = False
@@ -406,7 +408,7 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
             # SIGTERM must not wait for the next frame: cancel the stream when stop is set.
             done = threading.Event()
             threading.Thread(target=_cancel_on_stop, args=(stream, stop, done), daemon=True).start()
-            run_id, frames = "", 0
+            run_id = ""
             status: dict | None = None
             try:
                 for response in stream:
@@ -420,10 +422,18 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
                         # end of a stream.
                         compositor.end_run(run_id, host_status=_host_status(stub))
                     compositor.on_published(response.frame)
-                    run_id, frames = response.frame.run_id, frames + 1
+                    run_id = response.frame.run_id
+                    backoff.reset()
             except grpc.RpcError as exc:
                 if stop.is_set():
                     return ended_any
+                if run_ended(exc):
+                    # The host's run ended before we subscribed: it lingers, then exits.
+                    log.info("host: %s; subscribing again after a pause", exc.details())
+                    if once:
+                        return True
+                    stop.wait(backoff.pause())
+                    continue
                 log.warning("host stream: %s %s; subscribing again", exc.code().name, exc.details())
                 stop.wait(1.0)
                 continue
@@ -436,9 +446,9 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
             ended_any = True
             if once:
                 return True
-            if frames == 0:
-                # A host that has ended its run closes new streams at once until it exits.
-                stop.wait(0.5)
+            # The host lingers a moment after its run, refusing new streams: ask again after a
+            # pause, longer after each refusal (services/rig/resubscribe.py), never in a tight loop.
+            stop.wait(backoff.pause())
     return ended_any
 
 

@@ -196,3 +196,19 @@ def test_a_stopped_host_ends_every_stream_with_every_frame_and_its_final_counter
         runner.join()
         server.stop(0).wait()
 
+
+def test_a_subscription_after_the_run_is_failed_precondition_saying_so(host):
+    from services.rig.resubscribe import run_ended
+
+    pub, stop, address = host
+    pub.start_timeout_s = 0.0
+    pub.run(stop)
+    with make_channel(address) as ch:
+        stub = host_pb2_grpc.HostServiceStub(ch)
+        with pytest.raises(grpc.RpcError) as err:
+            next(iter(stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="late", channel_name="left"),
+                                           timeout=10)))
+        assert err.value.code() == grpc.StatusCode.FAILED_PRECONDITION and run_ended(err.value)
+        assert f"run_id '{pub.status.run_id}' has ended" in err.value.details()
+        status = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=10)
+        assert dict(status.requests_refused) == {"run_ended": 1} and not status.subscribers

@@ -1,5 +1,5 @@
 """The compositor following the host's stream: the host's final counters come with the stream's
-end however the host stopped (issue 33)."""
+end however the host stopped (issue 33), and an ended run is asked again only after a pause."""
 
 import threading
 import time
@@ -90,3 +90,42 @@ def test_a_run_that_ends_by_itself_says_so(tmp_path):
     host = comp.finish(grace_s=0.0)["host"]
     assert host["run_end"] == "completed" and host["frames_published"] == pub.tick_count == 6
 
+
+class _CountedStop(threading.Event):
+    """A stop event that records every pause the thread that made it asks of it, and sets itself
+    after `pauses` of them (the stream's canceller, on a thread of its own, only polls it)."""
+
+    def __init__(self, pauses):
+        super().__init__()
+        self.pauses = pauses
+        self.asked = []
+        self._owner = threading.current_thread()
+
+    def wait(self, timeout=None):
+        if threading.current_thread() is not self._owner:
+            return super().wait(timeout)
+        self.asked.append(timeout)
+        if len(self.asked) >= self.pauses:
+            self.set()
+        return self.is_set()
+
+
+def test_an_ended_run_is_asked_again_only_after_a_pause(tmp_path):
+    from services.rig.resubscribe import RUN_ENDED_FIRST_PAUSE_S, RUN_ENDED_MAX_PAUSE_S
+
+    pub = FramePublisher(source=lambda t: Eyepoint.of(t, 0, 10, 0, 0, 0), channels=[], duration_s=0.0,
+                         start_timeout_s=0.0)
+    pub.run(threading.Event())
+    server = make_server()
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub), server)
+    address = f"127.0.0.1:{server.add_insecure_port('127.0.0.1:0')}"
+    server.start()
+    comp = Compositor(("a", "b"), tmp_path, record_every=0, exr_every=0)
+    stop = _CountedStop(3)
+    try:
+        assert not observe_host(comp, address, stop)
+    finally:
+        server.stop(0).wait()
+        comp.finish(grace_s=0.0)
+    assert stop.asked == [RUN_ENDED_FIRST_PAUSE_S, RUN_ENDED_MAX_PAUSE_S, RUN_ENDED_MAX_PAUSE_S]
+    assert pub.snapshot().requests_refused == {"run_ended": 3}
