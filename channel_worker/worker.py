@@ -47,6 +47,7 @@ from services.rig.grpc_util import (
 from services.rig.memory import keep_freed_memory
 from services.rig.options import RenderOptions
 from services.rig.report import FrameReport
+from services.rig.resubscribe import RunEndedBackoff, run_ended
 from services.rig.rigfile import WireSpec
 from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_proto
 
@@ -60,7 +61,7 @@ from .submit import ImageSender, SubmitStub, warm_encoders
 log = logging.getLogger("ig.worker")
 SERVICE = "ig.v1.ChannelWorkerService"
 
-#: Pause before subscribing again after a stream ended without finishing a run, seconds.
+#: Pause before subscribing again after a stream broke (the host gone, a deadline), seconds.
 _RESUBSCRIBE_S = 1.0
 #: Every how many frames the worker logs its frame report at INFO (5 s at 60 Hz).
 REPORT_EVERY = 300
@@ -92,6 +93,7 @@ class StreamEnd(enum.Enum):
     """How one subscription to the host ended."""
 
     RUN_OVER = "run over"  # the host closed the stream: its run has ended
+    RUN_OVER_REFUSED = "run over, refused"  # the host's run had ended before we subscribed
     REFUSED = "refused"  # the host refused the channel name: the rig files disagree
     LOST = "lost"  # the host is gone, the deadline passed, or the channel is still taken
     STOPPED = "stopped"  # this worker is shutting down
@@ -187,6 +189,9 @@ class ChannelWorker:
         self.compositor_stub = SubmitStub(self._compositor)
         self._last_taken = -1
         self._eye_below_said = False  # the eye-below-terrain warning, said once a run
+        # Pauses before subscribing again after a run ended; reset by the receiver on a frame
+        # (it is joined before run() takes the next pause).
+        self._backoff = RunEndedBackoff()
         # The host's environment as this worker's database, built once per environment.
         self._environments = EnvironmentCache()
 
@@ -234,15 +239,17 @@ class ChannelWorker:
                 self._cancel_stream()
                 receiver.join()
                 end = outcome[0] if outcome else StreamEnd.STOPPED
-                if end is StreamEnd.REFUSED or (end is StreamEnd.RUN_OVER and self.once):
+                run_over = end in (StreamEnd.RUN_OVER, StreamEnd.RUN_OVER_REFUSED)
+                if end is StreamEnd.REFUSED or (run_over and self.once):
                     break
                 with self._lock:
                     self.counters.resubscriptions += 1
-                # A run that ended normally is followed by the next one at once (the host waits
-                # for every channel before its first frame); a broken stream is retried after a
-                # pause, the channel's reconnection backoff (at most 1 s) doing the rest.
-                if end is not StreamEnd.RUN_OVER:
-                    stop.wait(_RESUBSCRIBE_S)
+                # After a run the host lingers a moment, refusing new subscriptions, before it
+                # exits: the worker pauses before asking again, longer after each refusal
+                # (services/rig/resubscribe.py), instead of asking in a tight loop. A broken stream
+                # is retried after a fixed pause, the channel's reconnection backoff (at most 1 s)
+                # doing the rest. Once the host is gone the subscription waits for the next one.
+                stop.wait(self._backoff.pause() if run_over else _RESUBSCRIBE_S)
         finally:
             self._host.close()
             self._compositor.close()
@@ -268,7 +275,14 @@ class ChannelWorker:
             if stop.is_set():  # SIGTERM arrived before the stream was registered for cancelling
                 stream.cancel()
             for response in stream:
-                mailbox.put(response.frame)
+                if response.HasField("frame"):
+                    self._backoff.reset()
+                    mailbox.put(response.frame)
+                elif response.HasField("run_end"):
+                    # The stream's last message; the host's counters in it are for the compositor.
+                    status = response.run_end.host_status
+                    log.info("host run %s ended (%s) after %d frames", status.run_id,
+                             host_pb2.RunEndReason.Name(response.run_end.reason), status.frames_published)
             end = StreamEnd.RUN_OVER
         except grpc.RpcError as exc:
             code = exc.code()
@@ -279,6 +293,9 @@ class ChannelWorker:
                 log.error("host refused the subscription: %s", self.refused)
             elif code == grpc.StatusCode.CANCELLED and stop.is_set():
                 end = StreamEnd.STOPPED
+            elif run_ended(exc):
+                end = StreamEnd.RUN_OVER_REFUSED
+                log.info("host: %s; subscribing again after a pause", exc.details())
             else:
                 # UNAVAILABLE (host restarting), DEADLINE_EXCEEDED (a very long session),
                 # ALREADY_EXISTS (the host has not yet noticed our previous stream died): retry.

@@ -48,6 +48,11 @@ _STOP_POLL_S = 0.1
 _HEALTH_POLL_S = 0.5
 _START_LOG_S = 10.0
 
+#: How a run ended (FramePublisher.end_reason): it published its last frame, or the stop event
+#: (SIGTERM) ended it first.
+COMPLETED = "completed"
+STOPPED = "stopped"
+
 
 class UnknownChannel(ValueError):
     """A subscription or acknowledgement named a channel that is not in the rig."""
@@ -55,6 +60,11 @@ class UnknownChannel(ValueError):
 
 class ChannelTaken(ValueError):
     """A second subscriber asked for a channel that already has one (two workers for one window)."""
+
+
+class RunOver(ValueError):
+    """A subscription after the run has ended: the host publishes nothing more and exits after
+    its linger."""
 
 
 class FrameOutOfRange(ValueError):
@@ -197,6 +207,8 @@ class FramePublisher:
         #: Number of the last frame published (-1 before the first) and of the frame the swap
         #: barrier waits for.
         self._published = -1
+        #: How the run ended (COMPLETED or STOPPED), "" while it runs.
+        self.end_reason = ""
         self._lock = threading.Condition()
 
     @property
@@ -210,6 +222,7 @@ class FramePublisher:
 
         Raises:
             UnknownChannel: channel_name is neither "" nor a rig channel.
+            RunOver: the run has ended (counted in requests_refused as run_ended).
             ChannelTaken: channel_name already has an open subscription.
         """
         if channel_name and channel_name not in self.channels:
@@ -220,14 +233,21 @@ class FramePublisher:
             raise UnknownChannel(message)
         sub = Subscription(subscriber, channel_name)
         with self._lock:
+            if self.status.finished:
+                # A stream opened now would end at once, and its subscriber, taking that for the
+                # end of a run, would come straight back: refused instead, with a status that says
+                # why (services/rig/resubscribe.py). Counted; last_error keeps the last real problem.
+                refused = self.status.requests_refused
+                refused["run_ended"] = refused.get("run_ended", 0) + 1
+                raise RunOver(f"run_id {self.status.run_id!r} has ended ({self.status.frames_published} frames "
+                              f"published): this host takes no new subscription and exits shortly; "
+                              f"subscribe to the next run")
             taken = [s for s in self._subs if channel_name and s.channel_name == channel_name]
             if taken:
                 message = f"channel_name: {channel_name!r} already has a subscriber ({taken[0].subscriber})"
                 self.status.subscriptions_rejected += 1
                 self.status.last_error = message
                 raise ChannelTaken(message)
-            if self.status.finished:
-                sub.close()
             self._subs.append(sub)
             self._lock.notify_all()
         return sub
@@ -239,6 +259,12 @@ class FramePublisher:
                 self._subs.remove(sub)
                 self.status.queue_drops[sub.subscriber] = sub.dropped
                 self._lock.notify_all()
+
+    def wait_streams_ended(self, timeout_s: float) -> bool:
+        """Wait until no subscription is open (each stream has delivered the end of the run and
+        ended), at most timeout_s seconds; whether none is."""
+        with self._lock:
+            return self._lock.wait_for(lambda: not self._subs, timeout=timeout_s)
 
     def refuse(self, cause: str, message: str) -> None:
         """Count a refused request (GetHostStatus.requests_refused) and keep its message."""
@@ -316,6 +342,7 @@ class FramePublisher:
         finally:
             with self._lock:
                 self.status.finished = True
+                self.end_reason = STOPPED if stop.is_set() else COMPLETED
                 subs = list(self._subs)
             for sub in subs:
                 sub.close()

@@ -11,22 +11,37 @@ import grpc
 from ig.v1 import host_pb2, host_pb2_grpc
 from services.rig.grpc_util import Security, add_health, add_service, bind, make_server, set_not_serving
 
-from .publisher import ChannelTaken, FrameOutOfRange, FramePublisher, OtherRun, UnknownChannel
+from .publisher import (
+    COMPLETED,
+    STOPPED,
+    ChannelTaken,
+    FrameOutOfRange,
+    FramePublisher,
+    OtherRun,
+    RunOver,
+    UnknownChannel,
+)
 
 log = logging.getLogger("ig.host")
 SERVICE = "ig.v1.HostService"
 
-#: How often a stream handler wakes up to notice a cancelled client or a stopping host.
+#: How often a stream handler wakes up to notice a cancelled client.
 _POLL_S = 0.5
+
+#: Longest a stopped host (SIGTERM) keeps serving for its streams to deliver the end of the run
+#: (the final counters) before it stops, seconds; they take milliseconds, the publisher closing
+#: every subscription within a tenth of a second of the stop.
+_STOP_DRAIN_S = 2.0
+
+_END_REASONS = {COMPLETED: host_pb2.RUN_END_REASON_COMPLETED, STOPPED: host_pb2.RUN_END_REASON_STOPPED}
 
 
 class HostServicer(host_pb2_grpc.HostServiceServicer):
     """HostService over a publisher; eyepoints is what feeds it (for GetHostStatus): a
     ControlledFlight, a Replay, or None for the bundled flight."""
 
-    def __init__(self, publisher: FramePublisher, stop: threading.Event, *, eyepoints: Any = None) -> None:
+    def __init__(self, publisher: FramePublisher, *, eyepoints: Any = None) -> None:
         self.publisher = publisher
-        self.stop = stop
         self.eyepoints = eyepoints
 
     def SubscribeFrames(self, request, context):
@@ -38,16 +53,29 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
         except ChannelTaken as exc:
             log.warning("subscription refused: %s", exc)
             context.abort(grpc.StatusCode.ALREADY_EXISTS, str(exc))
+        except RunOver as exc:
+            log.info("subscriber %s (channel %r) refused: %s", request.subscriber or context.peer(),
+                     request.channel_name, exc)
+            context.abort(grpc.StatusCode.FAILED_PRECONDITION, str(exc))
         log.info("subscriber %s (channel %r) joined", sub.subscriber, sub.channel_name)
         try:
-            while context.is_active() and not self.stop.is_set():
+            # The stream runs until the publisher closes the subscription, at the end of the run
+            # or within a tenth of a second of a stop (SIGTERM), so that every frame published
+            # and the end of the run reach the subscriber however the host stops.
+            while context.is_active():
                 frame = sub.get(_POLL_S)
                 if frame is not None:
                     yield host_pb2.SubscribeFramesResponse(frame=frame)
                 elif sub.closed:
+                    yield host_pb2.SubscribeFramesResponse(run_end=self.run_end())
                     return
         finally:
             self.publisher.unsubscribe(sub)
+
+    def run_end(self) -> host_pb2.RunEnd:
+        """The end of the run, the stream's last message: how it ended and the final counters."""
+        reason = _END_REASONS.get(self.publisher.end_reason, host_pb2.RUN_END_REASON_UNSPECIFIED)
+        return host_pb2.RunEnd(reason=reason, host_status=self.status())
 
     def AckFrame(self, request, context):
         try:
@@ -62,6 +90,10 @@ class HostServicer(host_pb2_grpc.HostServiceServicer):
         return host_pb2.AckFrameResponse()
 
     def GetHostStatus(self, request, context):
+        return self.status()
+
+    def status(self) -> host_pb2.GetHostStatusResponse:
+        """The host's counters and its eyepoint source's."""
         s = self.publisher.snapshot()
         return host_pb2.GetHostStatusResponse(
             run_id=s.run_id, frames_published=s.frames_published, eyepoints_rejected=s.eyepoints_rejected,
@@ -116,15 +148,18 @@ def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
           linger_s: float = 2.0, eyepoints: Any = None, security: Security | None = None) -> int:
     """Serve the host on address and run the publisher until the run ends or stop is set.
 
-    After the run it keeps answering for linger_s so that late acknowledgements and status
-    requests still succeed, then stops. eyepoints is what the publisher's source belongs to
-    (HostServicer); security: mutual TLS or plaintext (grpc_util.bind). Returns the bound port.
+    After a run that ends by itself it keeps answering for linger_s so that late
+    acknowledgements and status requests still succeed, refusing new subscriptions; stopped
+    (stop set: SIGTERM) it keeps answering only until every stream has delivered the end of the
+    run, with the final counters (at most _STOP_DRAIN_S). Then it stops. eyepoints is what the
+    publisher's source belongs to (HostServicer); security: mutual TLS or plaintext
+    (grpc_util.bind). Returns the bound port.
 
     Raises:
         OSError: address cannot be bound, or plaintext off the loopback is not allowed.
     """
     server = make_server()
-    add_service(server, HostServicer(publisher, stop, eyepoints=eyepoints),
+    add_service(server, HostServicer(publisher, eyepoints=eyepoints),
                 host_pb2.DESCRIPTOR.services_by_name["HostService"], refused=publisher.refuse)
     health = add_health(server, [SERVICE], refused=publisher.refuse)
     port = bind(server, address, security)
@@ -140,7 +175,12 @@ def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
     while runner.is_alive() and not stop.wait(0.2):
         pass
     runner.join()
-    stop.wait(linger_s)
+    if stop.is_set():
+        if not publisher.wait_streams_ended(_STOP_DRAIN_S):
+            log.warning("stopping with %d stream(s) still open after %.0f s: their subscribers get no final "
+                        "counters", len(publisher.snapshot().subscribers), _STOP_DRAIN_S)
+    else:
+        stop.wait(linger_s)
     set_not_serving(health, [SERVICE])
     server.stop(grace=1.0).wait()
     s = publisher.snapshot()

@@ -30,6 +30,7 @@ from services.rig.grpc_util import (
     make_server,
     set_not_serving,
 )
+from services.rig.resubscribe import RunEndedBackoff, run_ended
 from services.rig.rigfile import WireSpec
 from services.rig.shared_images import SharedImageReader, shared_memory_supported
 
@@ -392,8 +393,12 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
 
     Subscribes again while the host is not up yet or the stream breaks. The host closing the
     stream normally means its run is over: the host's final counters go into the run's report,
-    the run is ended (Compositor.end_run) and, without once, the next run is waited for.
+    the run is ended (Compositor.end_run) and, without once, the next run is waited for. The
+    counters come with the stream's last message (RunEnd), however the host stopped; a stream
+    that ends without one (a host before issue 33) has them asked of GetHostStatus, which a host
+    stopped by SIGTERM may no longer answer.
     """
+    backoff = RunEndedBackoff()
     with make_channel(host_address, security) as channel:
         stub = host_pb2_grpc.HostServiceStub(channel)
         ended_any = False
@@ -403,43 +408,66 @@ def observe_host(compositor: Compositor, host_address: str, stop: threading.Even
             # SIGTERM must not wait for the next frame: cancel the stream when stop is set.
             done = threading.Event()
             threading.Thread(target=_cancel_on_stop, args=(stream, stop, done), daemon=True).start()
-            run_id, frames = "", 0
+            run_id = ""
+            status: dict | None = None
             try:
                 for response in stream:
+                    if response.HasField("run_end"):
+                        status = host_status_doc(response.run_end.host_status)
+                        status["run_end"] = _END_REASONS.get(response.run_end.reason, "")
+                        continue
                     if run_id and response.frame.run_id != run_id:
                         # The host started a new run in the same stream (a CIGI host restarted):
                         # the run that ends gets the host's counters as they stand, as at the
                         # end of a stream.
                         compositor.end_run(run_id, host_status=_host_status(stub))
                     compositor.on_published(response.frame)
-                    run_id, frames = response.frame.run_id, frames + 1
+                    run_id = response.frame.run_id
+                    backoff.reset()
             except grpc.RpcError as exc:
                 if stop.is_set():
                     return ended_any
+                if run_ended(exc):
+                    # The host's run ended before we subscribed: it lingers, then exits.
+                    log.info("host: %s; subscribing again after a pause", exc.details())
+                    if once:
+                        return True
+                    stop.wait(backoff.pause())
+                    continue
                 log.warning("host stream: %s %s; subscribing again", exc.code().name, exc.details())
                 stop.wait(1.0)
                 continue
             finally:
                 done.set()
-            status = _host_status(stub)
+            if status is None:
+                status = _host_status(stub)
             run_id = run_id or (status or {}).get("run_id", "")
             compositor.end_run(run_id, host_status=status, grace_s=grace_s)
             ended_any = True
             if once:
                 return True
-            if frames == 0:
-                # A host that has ended its run closes new streams at once until it exits.
-                stop.wait(0.5)
+            # The host lingers a moment after its run, refusing new streams: ask again after a
+            # pause, longer after each refusal (services/rig/resubscribe.py), never in a tight loop.
+            stop.wait(backoff.pause())
     return ended_any
 
 
+#: RunEnd.reason as the report says it (report["host"]["run_end"]).
+_END_REASONS = {host_pb2.RUN_END_REASON_COMPLETED: "completed", host_pb2.RUN_END_REASON_STOPPED: "stopped"}
+
+
 def _host_status(stub: host_pb2_grpc.HostServiceStub) -> dict | None:
-    """The host's counters for the report, None if it does not answer."""
+    """The host's counters for the report, asked of GetHostStatus; None if it does not answer."""
     try:
         s = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=RPC_DEADLINE_S)
     except grpc.RpcError as exc:
         log.warning("host status unavailable: %s", exc.code().name)
         return None
+    return host_status_doc(s)
+
+
+def host_status_doc(s: host_pb2.GetHostStatusResponse) -> dict:
+    """The host's counters as the report holds them (report["host"], docs/frame-lock.md)."""
     return {
         "run_id": s.run_id, "frames_published": s.frames_published,
         "eyepoints_rejected": s.eyepoints_rejected, "ack_timeouts": dict(s.ack_timeouts),

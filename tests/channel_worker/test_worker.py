@@ -1,6 +1,7 @@
 """The worker renders the newest frame only and counts what it skipped; bad frames are refused."""
 
 import logging
+import threading
 
 import numpy as np
 
@@ -114,7 +115,7 @@ def test_a_refused_subscription_ends_the_worker_with_the_reason(make_scene, box_
     pub = FramePublisher(source=lambda t: Eyepoint.of(0, 0, 10, 0, 0, 0), channels=["left"], duration_s=0.0)
     stop = threading.Event()
     server = make_server(max_workers=4)
-    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub, stop), server)
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub), server)
     port = server.add_insecure_port("127.0.0.1:0")
     server.start()
     try:
@@ -256,3 +257,79 @@ def test_the_shared_memory_segment_goes_when_the_worker_stops(make_scene, box_mo
     stop.set()
     w.run(stop)
     assert not segment.exists() and not w.sender.shared
+
+
+def _serve_host(pub):
+    """HostService over pub on an in-process server: (server, address)."""
+    from host_sim.server import HostServicer
+    from ig.v1 import host_pb2_grpc
+    from services.rig.grpc_util import make_server
+
+    server = make_server(max_workers=4)
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub), server)
+    port = server.add_insecure_port("127.0.0.1:0")
+    server.start()
+    return server, f"127.0.0.1:{port}"
+
+
+class _CountedStop(threading.Event):
+    """A stop event that records every pause asked of it and sets itself after `pauses` of them."""
+
+    def __init__(self, pauses):
+        super().__init__()
+        self.pauses = pauses
+        self.asked = []
+
+    def wait(self, timeout=None):
+        self.asked.append(timeout)
+        if len(self.asked) >= self.pauses:
+            self.set()
+        return self.is_set()
+
+
+def test_a_worker_pauses_before_asking_an_ended_run_again(make_scene, box_model_factory):
+    # After a run the host lingers and refuses new subscriptions; the worker used to ask again at
+    # once, thousands of times a second (issue 33). It now pauses, longer after each refusal.
+    from host_sim.publisher import FramePublisher
+    from services.rig.frame import Eyepoint
+    from services.rig.resubscribe import RUN_ENDED_FIRST_PAUSE_S, RUN_ENDED_MAX_PAUSE_S
+
+    pub = FramePublisher(source=lambda t: Eyepoint.of(0, 0, 10, 0, 0, 0), channels=["centre"], duration_s=0.0,
+                         start_timeout_s=0.0)
+    pub.run(threading.Event())
+    server, address = _serve_host(pub)
+    try:
+        db = make_scene({"b": box_model_factory(1, 1, 1)}, [{"model": "b", "position": [0, 0, 0]}])
+        w = ChannelWorker(db, ChannelSpec.symmetric("centre", 16, 12, 60.0), host_address=address,
+                          compositor_address=address, options=RenderOptions(samples=1))
+        stop = _CountedStop(4)
+        w.run(stop)
+    finally:
+        server.stop(0).wait()
+    assert stop.asked == [RUN_ENDED_FIRST_PAUSE_S, *[RUN_ENDED_MAX_PAUSE_S] * 3]
+    assert w.counters.resubscriptions == 4 and w.counters.frames_handled == 0 and not w.refused
+    assert pub.snapshot().requests_refused == {"run_ended": 4}
+
+
+def test_a_once_worker_ends_with_the_run_and_does_not_render_its_end(make_scene, box_model_factory):
+    from host_sim.publisher import FramePublisher
+    from services.rig.frame import Eyepoint
+
+    pub = FramePublisher(source=lambda t: Eyepoint.of(0, -900.0 + t, 3, 0, 0, 0), channels=["centre"],
+                         rate_hz=100.0, duration_s=0.04, start_timeout_s=60.0)
+    server, address = _serve_host(pub)
+    stop = threading.Event()
+    runner = threading.Thread(target=pub.run, args=(stop,))
+    runner.start()
+    try:
+        db = make_scene({"b": box_model_factory(1, 1, 1)}, [{"model": "b", "position": [0, 0, 0]}])
+        w = ChannelWorker(db, ChannelSpec.symmetric("centre", 16, 12, 60.0), host_address=address,
+                          compositor_address=address, options=RenderOptions(samples=1), once=True)
+        w.run(stop)  # returns at the end of the run: the stream's last message is not a frame
+        runner.join()
+    finally:
+        stop.set()
+        server.stop(0).wait()
+    assert w.counters.frames_handled == pub.tick_count == 5
+    assert w.counters.run_id == pub.status.run_id and w.counters.last_frame_number == 4
+    assert w.counters.resubscriptions == 0

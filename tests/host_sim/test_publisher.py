@@ -5,7 +5,7 @@ import time
 
 import pytest
 
-from host_sim.publisher import ChannelTaken, FramePublisher, UnknownChannel
+from host_sim.publisher import COMPLETED, STOPPED, ChannelTaken, FramePublisher, RunOver, UnknownChannel
 from services.rig.frame import Eyepoint
 
 
@@ -154,6 +154,23 @@ def test_stop_interrupts_the_wait_for_subscribers():
     runner.join()
     status = pub.snapshot()
     assert status.finished and status.frames_published == 0
+    assert pub.end_reason == STOPPED
+
+
+def test_a_subscription_after_the_run_is_refused_and_counted_not_opened():
+    # A stream opened after the end would close at once, and its subscriber come straight back
+    # (issue 33): the host refuses it instead, saying the run has ended.
+    pub = FramePublisher(source=source, channels=["a"], rate_hz=100.0, duration_s=0.02, start_timeout_s=0.0)
+    pub.run(threading.Event())
+    assert pub.end_reason == COMPLETED
+    for _ in range(2):
+        with pytest.raises(RunOver, match=rf"run_id '{pub.status.run_id}' has ended \(3 frames published\)"):
+            pub.subscribe("worker-a", "a")
+    status = pub.snapshot()
+    assert status.requests_refused == {"run_ended": 2} and status.subscribers == []
+    assert status.last_error == ""  # the last real problem is kept
+    with pytest.raises(UnknownChannel):  # a wrong name is still said first: it never goes away
+        pub.subscribe("worker-z", "z")
 
 
 def test_stop_interrupts_the_wait_for_acks():

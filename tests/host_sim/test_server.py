@@ -18,7 +18,7 @@ def host():
                          rate_hz=100.0, duration_s=0.05, observers=1, start_timeout_s=60.0)
     stop = threading.Event()
     server = make_server()
-    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub, stop), server)
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub), server)
     add_health(server, [SERVICE])
     port = server.add_insecure_port("127.0.0.1:0")
     server.start()
@@ -46,6 +46,8 @@ def test_stream_ack_status_health_and_refusals(host):
             frames = []
             for r in stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber=name, channel_name=name),
                                           timeout=60):
+                if not r.HasField("frame"):
+                    continue
                 frames.append(r.frame.frame_number)
                 stub.AckFrame(host_pb2.AckFrameRequest(channel_name=name, frame_number=r.frame.frame_number,
                                                        ok=True), timeout=10)
@@ -54,12 +56,16 @@ def test_stream_ack_status_health_and_refusals(host):
         threads = [threading.Thread(target=channel, args=(n,)) for n in ("left", "right")]
         for t in threads:
             t.start()
-        observed = [r.frame for r in stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="obs"),
-                                                           timeout=60)]
+        *messages, last = stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="obs"), timeout=60)
+        observed = [r.frame for r in messages]
         for t in threads:
             t.join()
         runner.join()
         assert [f.frame_number for f in observed] == list(range(pub.tick_count))
+        # The stream's last message is the end of the run, with the final counters.
+        assert last.WhichOneof("content") == "run_end"
+        assert last.run_end.reason == host_pb2.RUN_END_REASON_COMPLETED
+        assert last.run_end.host_status.finished and last.run_end.host_status.frames_published == pub.tick_count
         assert got == {"left": list(range(pub.tick_count)), "right": list(range(pub.tick_count))}
         assert observed[1].eyepoint.x == pytest.approx(0.01)
 
@@ -79,7 +85,7 @@ def test_stream_ack_status_health_and_refusals(host):
 def serve_in_process(pub, eyepoints):
     stop = threading.Event()
     server = make_server()
-    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub, stop, eyepoints=eyepoints), server)
+    host_pb2_grpc.add_HostServiceServicer_to_server(HostServicer(pub, eyepoints=eyepoints), server)
     port = server.add_insecure_port("127.0.0.1:0")
     server.start()
     return server, stop, f"127.0.0.1:{port}"
@@ -146,3 +152,63 @@ def test_status_of_the_bundled_flight(host):
     with make_channel(address) as ch:
         status = host_pb2_grpc.HostServiceStub(ch).GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=10)
     assert status.eyepoint_source == "bundled" and not status.inputs and not status.HasField("replay")
+
+
+def test_a_stopped_host_ends_every_stream_with_every_frame_and_its_final_counters():
+    # SIGTERM mid-run (issue 33): the streams still deliver every frame published, then the end
+    # of the run with the host's counters, so the compositor need not ask a host that is going.
+    pub = FramePublisher(source=lambda t: Eyepoint.of(t, 0.0, 10.0, 0.0, 0.0, 0.0), channels=["left"],
+                         rate_hz=100.0, duration_s=3600.0, observers=1, start_timeout_s=60.0)
+    server, stop, address = serve_in_process(pub, None)
+    runner = threading.Thread(target=pub.run, args=(stop,))
+    runner.start()
+    try:
+        with make_channel(address) as ch:
+            stub = host_pb2_grpc.HostServiceStub(ch)
+
+            def channel():
+                for r in stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="w", channel_name="left"),
+                                              timeout=60):
+                    if r.HasField("frame"):
+                        stub.AckFrame(host_pb2.AckFrameRequest(channel_name="left", frame_number=r.frame.frame_number,
+                                                               ok=True, run_id=r.frame.run_id), timeout=10)
+
+            worker = threading.Thread(target=channel)
+            worker.start()
+            messages = []
+            for r in stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="obs"), timeout=60):
+                messages.append(r)
+                if len(messages) == 5:
+                    stop.set()
+            worker.join()
+            runner.join()
+            *frames, last = messages
+            assert all(m.HasField("frame") for m in frames)
+            assert last.WhichOneof("content") == "run_end"
+            assert last.run_end.reason == host_pb2.RUN_END_REASON_STOPPED
+            status = last.run_end.host_status
+            assert status.finished and status.run_id == pub.status.run_id
+            assert status.frames_published == len(frames) == [f.frame.frame_number for f in frames][-1] + 1
+            assert status.eyepoint_source == "bundled"
+            assert pub.wait_streams_ended(10.0)  # each handler forgot its subscription
+    finally:
+        stop.set()
+        runner.join()
+        server.stop(0).wait()
+
+
+def test_a_subscription_after_the_run_is_failed_precondition_saying_so(host):
+    from services.rig.resubscribe import run_ended
+
+    pub, stop, address = host
+    pub.start_timeout_s = 0.0
+    pub.run(stop)
+    with make_channel(address) as ch:
+        stub = host_pb2_grpc.HostServiceStub(ch)
+        with pytest.raises(grpc.RpcError) as err:
+            next(iter(stub.SubscribeFrames(host_pb2.SubscribeFramesRequest(subscriber="late", channel_name="left"),
+                                           timeout=10)))
+        assert err.value.code() == grpc.StatusCode.FAILED_PRECONDITION and run_ended(err.value)
+        assert f"run_id '{pub.status.run_id}' has ended" in err.value.details()
+        status = stub.GetHostStatus(host_pb2.GetHostStatusRequest(), timeout=10)
+        assert dict(status.requests_refused) == {"run_ended": 1} and not status.subscribers

@@ -1,11 +1,21 @@
 from ig.v1 import frame_pb2 as _frame_pb2
 from google.protobuf.internal import containers as _containers
+from google.protobuf.internal import enum_type_wrapper as _enum_type_wrapper
 from google.protobuf import descriptor as _descriptor
 from google.protobuf import message as _message
 from collections.abc import Iterable as _Iterable, Mapping as _Mapping
 from typing import ClassVar as _ClassVar, Optional as _Optional, Union as _Union
 
 DESCRIPTOR: _descriptor.FileDescriptor
+
+class RunEndReason(int, metaclass=_enum_type_wrapper.EnumTypeWrapper):
+    __slots__ = ()
+    RUN_END_REASON_UNSPECIFIED: _ClassVar[RunEndReason]
+    RUN_END_REASON_COMPLETED: _ClassVar[RunEndReason]
+    RUN_END_REASON_STOPPED: _ClassVar[RunEndReason]
+RUN_END_REASON_UNSPECIFIED: RunEndReason
+RUN_END_REASON_COMPLETED: RunEndReason
+RUN_END_REASON_STOPPED: RunEndReason
 
 class SubscribeFramesRequest(_message.Message):
     __slots__ = ("subscriber", "channel_name")
@@ -16,10 +26,20 @@ class SubscribeFramesRequest(_message.Message):
     def __init__(self, subscriber: _Optional[str] = ..., channel_name: _Optional[str] = ...) -> None: ...
 
 class SubscribeFramesResponse(_message.Message):
-    __slots__ = ("frame",)
+    __slots__ = ("frame", "run_end")
     FRAME_FIELD_NUMBER: _ClassVar[int]
+    RUN_END_FIELD_NUMBER: _ClassVar[int]
     frame: _frame_pb2.Frame
-    def __init__(self, frame: _Optional[_Union[_frame_pb2.Frame, _Mapping]] = ...) -> None: ...
+    run_end: RunEnd
+    def __init__(self, frame: _Optional[_Union[_frame_pb2.Frame, _Mapping]] = ..., run_end: _Optional[_Union[RunEnd, _Mapping]] = ...) -> None: ...
+
+class RunEnd(_message.Message):
+    __slots__ = ("reason", "host_status")
+    REASON_FIELD_NUMBER: _ClassVar[int]
+    HOST_STATUS_FIELD_NUMBER: _ClassVar[int]
+    reason: RunEndReason
+    host_status: GetHostStatusResponse
+    def __init__(self, reason: _Optional[_Union[RunEndReason, str]] = ..., host_status: _Optional[_Union[GetHostStatusResponse, _Mapping]] = ...) -> None: ...
 
 class AckFrameRequest(_message.Message):
     __slots__ = ("channel_name", "frame_number", "ok", "error", "run_id")

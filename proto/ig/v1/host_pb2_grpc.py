@@ -57,7 +57,10 @@ class HostServiceServicer:
     """
 
     def SubscribeFrames(self, request, context):
-        """Streams every frame of the run to one subscriber, then ends.
+        """Streams every frame of the run to one subscriber, then the end of the run (RunEnd, the
+        host's final counters), then ends. Once the run has ended the host takes no new
+        subscription: it is refused with FAILED_PRECONDITION ("run_id '...' has ended ..."), and the
+        subscriber waits before it tries again (docs/frame-lock.md).
         """
         context.set_code(grpc.StatusCode.UNIMPLEMENTED)
         context.set_details('Method not implemented!')
