@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 RUN_STAMP := $(VENV)/.installed-run
 
-.PHONY: demo test check bench clean proto certs
+.PHONY: demo test check bench clean proto certs images
 
 # --no-compile: pip would byte-compile every installed module (15 s on the development
 # machine); Python compiles those a run imports, when it imports them (measured on a fresh clone:
@@ -61,6 +61,11 @@ bench: $(STAMP)
 	$(PY) bench/bench_cigi.py
 	$(PY) bench/bench_wire.py
 	$(VENV)/bin/ig latency --out bench/results/latency.json
+
+# The docs' views of the bundled world (docs/images/render_views.py): an approach, a low pass,
+# the cloud deck; regenerate them after a change to the picture and look at what changed.
+images: $(STAMP)
+	$(PY) docs/images/render_views.py
 
 # Regenerates the checked-in protobuf/gRPC code; tests/test_proto_generated.py checks it is current.
 proto: $(STAMP)
