@@ -1295,9 +1295,9 @@ def land_detail(record: dict, quick: bool, repeats: int, progress: Progress) -> 
         "method": "render_background called alone on the demo scene with its terrain.detail and with "
                   "terrain_land=None, one call of each in turn, centre channel at the sweep's size and "
                   "samples; cast_ms = parts['background.cast'], total_ms the whole render_background (cast, "
-                  "per-sample depth, clouds), medians over the repeats after one warm-up of each; detail_share = (cast with - cast "
-                  "without) / stage without (the budget's measure), cast_share = the same over the cast "
-                  "without",
+                  "per-sample depth, clouds), medians over the repeats after one warm-up of each; "
+                  "detail_share = (cast with - cast without) / stage without (the budget's measure), "
+                  "cast_share = the same over the cast without",
         "budget": DETAIL_BUDGET, "rows": rows,
         "worst_share": max(r["detail_share"] for r in rows),
     }
