@@ -375,6 +375,7 @@ TEXTURES = {
     "brick": {"bundled": "brick"},
     "patches": {"procedural": "noise", "size": 128, "seed": 3},
     "streaks": {"procedural": "noise", "size": 64, "seed": 8},
+    "crowns": {"procedural": "noise", "size": 32, "seed": 11},
 }
 # Texture codes: the primary texture at its own scale, the secondary and tertiary at a common
 # coarser scale (the texture patent's fine and coarse patterns: the fine one fades with range,
@@ -397,6 +398,8 @@ TEXTURE_CODES = {
     "field": {"textures": ["streaks"], "intensity": 0.8, "scale_m": [3.0, 75.0]},
     "rock": {"textures": ["gravel", "patches"], "intensity": 0.9, "scale_m": [5.0, 5.0],
              "detail_scale_m": [35.0, 35.0], "amplitudes": [0.8, 0.0]},
+    # A forest's canopy from above: crowns and the gaps between them (noise at crown size).
+    "canopy": {"textures": ["crowns"], "intensity": 1.2, "scale_m": [56.0, 56.0]},
 }
 # Models shaded smoothly (Gouraud): the barrel roofs, and the hills' terrain-like slopes.
 SMOOTH_MODELS = {"arched_hangar"} | {f"hill_{k + 1}" for k in range(9)}
@@ -524,7 +527,7 @@ def build_terrain_scene() -> dict[str, Any]:
     # The land's detail: texture codes per land class over the relief colour, and the airfield's
     # grass (colour and code of its grass faces) on its pad, feathered into the land around it.
     doc["terrain"] = {"database": "bundled:jacksboro", "polygon_margin_m": 1.0,
-                      "detail": {"grass": "terrain_grass", "field": "field", "rock": "rock",
+                      "detail": {"grass": "terrain_grass", "field": "field", "rock": "rock", "forest": "canopy",
                                  "pad": {"code": "grass", "colour": GRASS}}}
     doc["haze"] = {"visibility_m": 30000.0, "scale_height_m": 1500.0, "base_height_m": 0.0,
                    "colour": "#c4ccd6"}

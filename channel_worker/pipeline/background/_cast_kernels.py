@@ -39,6 +39,7 @@ from channel_worker.pipeline.scene.texture_sampling import TextureArrays, textur
 
 from ._groups import (
     FIELD,
+    FOREST,
     GRASS,
     PAD,
     ROCK,
@@ -67,9 +68,10 @@ _ROW, _AR, _AG, _AB, _AW, _IR = 0, 1, 2, 3, 4, 5
 _R1, _Z1, _R2, _Z2 = 6, 7, 8, 9  # the last segment emitted
 _TANMAX = 10  # tangent of the highest elevation seen so far (the line's horizon)
 _SMAX = 11  # the horizon's position along the line (steps)
-_GROUND = 12  # 1 while the last surface emitted is ground (a voxel's top), 0 for walls and patterns
+_GROUND = 12  # what the last surface emitted is: 1 ground (a voxel's top), 2 a tree pattern's top, 0 else
 _SLOPE = 13  # that voxel's slope (tangent), for the land's detail (TerrainDetail)
 _DETAIL = 14  # 1: the line draws the land's detail (TerrainDetail.on)
+_CANOPY = 2.0  # _GROUND's value for a tree's top
 _CELL_I, _CELL_J, _CELL_FIELD = 15, 16, 17  # the last field cell _detail looked at, and its verdict
 _STATE = 18
 # The line's buffer, a row per step: premultiplied colour (after haze and fog once the line is
@@ -268,7 +270,7 @@ def _finish_step(st, ln, air, buf, colours):
         # The surface's range at the step's centre, or that of the last segment's far end.
         rng = 1.0 / ir if ir > 0.0 else math.sqrt(seg[2] * seg[2] + seg[3] * seg[3])
         if st[_DETAIL] != 0.0 and st[_GROUND] != 0.0 and ir > 0.0:
-            ground = 1.0
+            ground = st[_GROUND]
             nr = seg[1] - seg[3]
             nz = seg[2] - seg[0]
             nn = math.sqrt(nr * nr + nz * nz)
@@ -310,8 +312,8 @@ def _through_air(ln, buf, lo, hi, air, detail, pages, st):
         h, v = _direction(ln, row + 0.5)
         rng = buf[row, _B_RANGE]
         if buf[row, _B_GROUND] != 0.0:
-            r, g, b = _detail(ln, detail, pages, st, h, v, rng, buf[row, _B_SLOPE], buf[row, _B_GRAZE], w,
-                              r, g, b)
+            r, g, b = _detail(ln, detail, pages, st, h, v, rng, buf[row, _B_GROUND], buf[row, _B_SLOPE],
+                              buf[row, _B_GRAZE], w, r, g, b)
         if hazy or foggy:
             norm = math.sqrt(h * h + v * v)
             sn = v / norm  # guard: _direction never returns (0, 0)
@@ -400,7 +402,7 @@ def _shows(t, c, fp, across):
 
 # Inlined into _through_air, its one caller.
 @njit(cache=True, inline="always")
-def _detail(ln, detail, pages, st, h, v, rng, slope, graze, w, r, g, b):
+def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
     """The step's premultiplied colour (r, g, b), coverage w, with the land's detail where its
     centre ray meets the ground (docs/terrain.md "Detail"): the land class's colour and texture
     code over the relief colour, fields and their hedges, and the airfield pads' grass feathered
@@ -424,6 +426,16 @@ def _detail(ln, detail, pages, st, h, v, rng, slope, graze, w, r, g, b):
     across = max(rng * abs(ln.h0 * ln.z1 - ln.z0 * ln.h1) / norm2, 1e-6)  # floor: a footprint
     along = across / max(graze, 1e-3)  # guard: a ray along the ground
     fp = max(along, across)
+    if ground == _CANOPY:
+        # A forest's canopy: its code's texture over the pattern's colour (crowns, gaps), as
+        # every class's, no pads or fields.
+        c = T_CLASSES + FOREST * T_CLASS_N
+        look = int(t[c])
+        if look >= 0 and _shows(t, c, fp, across):
+            mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, x, y,
+                                            ln.dx * along, ln.dy * along, -ln.dy * across, ln.dx * across)
+            return r * mr, g * mg, b * mb
+        return r, g, b
     # The pads: weight 1 inside, smoothstep down to 0 over the blend outside.
     wp = 0.0
     for k in range(int(t[T_PADS_N])):
@@ -1151,7 +1163,8 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, colours, limits, tan_lo, air):
             last = pages.pat_bands[k] - 1
             c_top = _rgb64(pages.pat_rgb[k, last])
             if lo > r_next * tan_max:
-                st[_GROUND] = 0.0
+                # A tree's canopy takes the forest's detail; a roof none.
+                st[_GROUND] = _CANOPY if pages.pat_canopy[k] else 0.0
                 _surface(st, ln, air, buf, colours, (r, lo, r_next, lo), math.nan,
                          _Paint(-1, 0, 0, 0.0, 0.0, 0.0, 0.0, c_top), c_top, c_top)
                 tan_max = st[_TANMAX]

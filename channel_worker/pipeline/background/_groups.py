@@ -47,6 +47,8 @@ class VoxelPages(NamedTuple):
             corner.
         pat_rgb: (K, B, 3) float32 each band's linear colour.
         pat_bands: (K,) int64 bands per pattern.
+        pat_canopy: (K,) bool whether a pattern's top is a forest's canopy (a "tree" pattern:
+            the land's detail textures it).
         lut: (256,) float32 sRGB byte -> linear.
     """
 
@@ -67,6 +69,7 @@ class VoxelPages(NamedTuple):
     pat_top: np.ndarray
     pat_rgb: np.ndarray
     pat_bands: np.ndarray
+    pat_canopy: np.ndarray
     lut: np.ndarray
 
 
@@ -131,8 +134,8 @@ class ScanLimits(NamedTuple):
 
 
 #: The land classes of TerrainDetail.table.
-GRASS, FIELD, ROCK, PAD = 0, 1, 2, 3
-LAND_CLASSES = 4
+GRASS, FIELD, ROCK, PAD, FOREST = 0, 1, 2, 3, 4
+LAND_CLASSES = 5
 #: Where the values sit in TerrainDetail.table (one array: the cast passes it down its calls
 #: whole, and fewer arrays are fewer arguments).
 T_ORIGIN = 0  # 2: world x, y of the database origin (texture coordinates are world metres)

@@ -38,6 +38,7 @@ from services.rig.colour import srgb_to_linear
 from ._cast_kernels import cast_kernel
 from ._groups import (
     FIELD,
+    FOREST,
     GRASS,
     LAND_CLASSES,
     PAD,
@@ -151,6 +152,7 @@ def voxel_pages(terrain: TerrainDatabase) -> VoxelPages:
     pat_top = np.zeros((n_pat, n_band), np.float32)
     pat_rgb = np.zeros((n_pat, n_band, 3), np.float32)
     pat_bands = np.ones(n_pat, np.int64)
+    pat_canopy = np.array([p.name == "tree" for p in patterns] or [False], np.bool_)
     for k, p in enumerate(patterns):
         pat_top[k, :len(p.top_m)] = p.top_m
         pat_rgb[k, :len(p.top_m)] = _SRGB_LUT[np.asarray(p.rgb, np.uint8)]
@@ -159,7 +161,7 @@ def voxel_pages(terrain: TerrainDatabase) -> VoxelPages:
     return VoxelPages(terrain.z, terrain.rgb, terrain.pattern, terrain.page_table,
                       terrain.table_offset, terrain.pages_x, terrain.pages_y, log2_page, level_nx,
                       level_ny, float(terrain.spacing_m), float(nx), float(ny),
-                      float(terrain.z_max), pat_top, pat_rgb, pat_bands, _SRGB_LUT)
+                      float(terrain.z_max), pat_top, pat_rgb, pat_bands, pat_canopy, _SRGB_LUT)
 
 
 def terrain_detail(database: Database, frame: FrameConstants) -> TerrainDetail:
@@ -185,7 +187,8 @@ def terrain_detail(database: Database, frame: FrameConstants) -> TerrainDetail:
     if land is not None and on:
         rows = {GRASS: (land.grass, MEADOW * light, MEADOW_MIX), FIELD: (land.field, np.zeros(3), FIELD_MIX),
                 ROCK_CLASS: (land.rock, ROCK * light, ROCK_MIX),
-                PAD: (land.pad, np.asarray(land.pad_colour, np.float64) * light, 1.0)}
+                PAD: (land.pad, np.asarray(land.pad_colour, np.float64) * light, 1.0),
+                FOREST: (land.forest, np.zeros(3), 0.0)}
         for k, (look, colour, mix) in rows.items():
             c = T_CLASSES + k * T_CLASS_N
             t[c:c + T_CLASS_N] = (look, *colour, mix, *fade_outs(frame, look))

@@ -120,7 +120,8 @@ class TerrainLand:
     drawn over the terrain's relief colour, and the airfield pads' grass.
 
     Attributes:
-        grass, field, rock: the look-table rows of the classes' texture codes (-1: none).
+        grass, field, rock, forest: the look-table rows of the classes' texture codes (-1:
+            none); forest's textures the tree patterns' tops (the canopy).
         pad: the look-table row of the pads' texture code (-1: none).
         pad_colour: (3,) float32 linear RGB of the pads' grass (the airfield's grass faces'
             colour, lit in the cast as they are: a horizontal face in the scene's light).
@@ -133,6 +134,7 @@ class TerrainLand:
     grass: int
     field: int
     rock: int
+    forest: int
     pad: int
     pad_colour: np.ndarray
     pads: np.ndarray

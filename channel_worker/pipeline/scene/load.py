@@ -381,9 +381,9 @@ class _Parser:
         """The optional "terrain.detail" key: texture codes per land class and the pads' grass."""
         if doc is None:
             return None
-        doc = self.obj(doc, "terrain.detail", set(), {"grass", "field", "rock", "pad"})
+        doc = self.obj(doc, "terrain.detail", set(), {"grass", "field", "rock", "forest", "pad"})
         looks = {}
-        for key in ("grass", "field", "rock"):
+        for key in ("grass", "field", "rock", "forest"):
             code = doc.get(key)
             if code is not None and not isinstance(code, str):
                 raise self.fail(f"terrain.detail.{key}", f"expected a texture code's name, got {_show(code)}")
@@ -404,7 +404,8 @@ class _Parser:
         sample = np.asarray(db.rgb[::max(1, db.rgb.shape[0] // 16), ::8, ::8, 0], np.uint8)
         linear = srgb_to_linear(sample.reshape(-1, 3) / 255.0)
         lum = float(np.mean(linear @ np.array([0.2126, 0.7152, 0.0722])))
-        return TerrainLand(grass=looks["grass"], field=looks["field"], rock=looks["rock"], pad=pad_look,
+        return TerrainLand(grass=looks["grass"], field=looks["field"], rock=looks["rock"], forest=looks["forest"],
+                           pad=pad_look,
                            pad_colour=pad_colour, pads=pads, relief_luminance=max(lum, 1e-3))
 
     def haze(self, doc: Any) -> Haze | None:
