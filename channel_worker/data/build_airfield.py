@@ -525,10 +525,14 @@ def build_terrain_scene() -> dict[str, Any]:
     doc = build_scene()
     doc["name"] = "bundled airfield on the Jacksboro terrain"
     # The land's detail: texture codes per land class over the relief colour, and the airfield's
-    # grass (colour and code of its grass faces) on its pad, feathered into the land around it.
+    # grass (colour and code of its grass faces) feathered from the grass faces' edges (the
+    # area they cover) over the flattened pad into the land: to 460 m out, past the pad's own
+    # blend (pad -450..550 x -1300..1300, blend 400).
     doc["terrain"] = {"database": "bundled:jacksboro", "polygon_margin_m": 1.0,
                       "detail": {"grass": "terrain_grass", "field": "field", "rock": "rock", "forest": "canopy",
-                                 "pad": {"code": "grass", "colour": GRASS}}}
+                                 "pad": {"code": "grass", "colour": GRASS, "covered": True,
+                                         "areas": [[-GRASS_HALF_X_M, -GRASS_HALF_Y_M, GRASS_HALF_X_M,
+                                                    GRASS_HALF_Y_M, 460.0]]}}}
     doc["haze"] = {"visibility_m": 30000.0, "scale_height_m": 1500.0, "base_height_m": 0.0,
                    "colour": "#c4ccd6"}
     # Fair-weather cumulus a kilometre above the airfield, over the terrain's area and beyond.

@@ -56,6 +56,7 @@ from ._groups import (
     T_HEDGE_M,
     T_LUM_REF,
     T_ORIGIN,
+    T_PAD_COVERED,
     T_PADS_AT,
     T_PADS_N,
     T_ROCK_SLOPE,
@@ -528,7 +529,9 @@ def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
         mg = 1.0
         mb = 1.0
         look = int(t[c])
-        if look >= 0 and _shows(t, c, fp, across):
+        # Inside a pad the scene's faces cover (the airfield's grass), the terrain is hidden:
+        # its colour only, no texture read.
+        if look >= 0 and not (wp == 1.0 and t[T_PAD_COVERED] != 0.0) and _shows(t, c, fp, across):
             mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, x, y,
                                             ln.dx * along, ln.dy * along, -ln.dy * across, ln.dx * across)
         # The pad's lit colour, premultiplied by the step's coverage like r, g, b.

@@ -147,7 +147,8 @@ T_FIELD_H = 6  # field cell height (north), metres, > 0
 T_HEDGE_M = 7  # half-width of the hedge along a field's edge, metres
 T_LUM_REF = 8  # the relief colours' mean luminance (linear), > 0
 T_HEDGE = 9  # 3: a hedge's colour factor on its field
-T_CLASSES = 12  # LAND_CLASSES rows of T_CLASS_N, below
+T_PAD_COVERED = 12  # 1: the scene's faces cover the pads (no texture read inside them)
+T_CLASSES = 13  # LAND_CLASSES rows of T_CLASS_N, below
 #: A class's row: look row (-1: none), linear colour r, g, b, the share (mix) of the relief's
 #: hue it takes keeping the relief's brightness (PAD: its lit colour, taken whole), then for each
 #: of its code's textures (MAX_CODE_TEXTURES) the footprints (metres) from which it has faded

@@ -54,6 +54,7 @@ from ._groups import (
     T_HEDGE_M,
     T_LUM_REF,
     T_ORIGIN,
+    T_PAD_COVERED,
     T_PADS_AT,
     T_PADS_N,
     T_ROCK_SLOPE,
@@ -193,6 +194,7 @@ def terrain_detail(database: Database, frame: FrameConstants) -> TerrainDetail:
             c = T_CLASSES + k * T_CLASS_N
             t[c:c + T_CLASS_N] = (look, *colour, mix, *fade_outs(frame, look))
         t[T_LUM_REF] = land.relief_luminance
+        t[T_PAD_COVERED] = 1.0 if land.pad_covered else 0.0
     t[T_FIELDS_N], t[T_PADS_N], t[T_PADS_AT] = len(fields), len(pads), T_FIELDS + fields.size
     t[T_FIELDS:T_FIELDS + fields.size] = fields.ravel()
     t[T_FIELDS + fields.size:] = pads.ravel()

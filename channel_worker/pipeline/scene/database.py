@@ -125,8 +125,11 @@ class TerrainLand:
         pad: the look-table row of the pads' texture code (-1: none).
         pad_colour: (3,) float32 linear RGB of the pads' grass (the airfield's grass faces'
             colour, lit in the cast as they are: a horizontal face in the scene's light).
-        pads: (N, 5) float64 pads (x0, y0, x1, y1, blend_m), world metres: the terrain
-            database's flattened pads (its recipe's "flatten") moved by the terrain's offset.
+        pad_covered: the scene's faces cover the pads' areas (the airfield's grass faces): the
+            terrain there, hidden, takes the pad's colour without reading its texture.
+        pads: (N, 5) float64 pads (x0, y0, x1, y1, blend_m), world metres: the scene's
+            "areas", else the terrain database's flattened pads (its recipe's "flatten")
+            moved by the terrain's offset.
         relief_luminance: the mean linear luminance of the terrain's level-0 colours (> 0):
             a class's colour keeps the relief's brightness relative to it.
     """
@@ -136,6 +139,7 @@ class TerrainLand:
     rock: int
     forest: int
     pad: int
+    pad_covered: bool
     pad_colour: np.ndarray
     pads: np.ndarray
     relief_luminance: float

@@ -388,24 +388,44 @@ class _Parser:
             if code is not None and not isinstance(code, str):
                 raise self.fail(f"terrain.detail.{key}", f"expected a texture code's name, got {_show(code)}")
             looks[key] = self.codes.look(code, False, f"terrain.detail.{key}")[0]
-        pad_look, pad_colour = -1, np.zeros(3, np.float32)
+        pad_look, pad_colour, covered = -1, np.zeros(3, np.float32), False
         pads = np.zeros((0, 5))
         if "pad" in doc:
-            pad = self.obj(doc["pad"], "terrain.detail.pad", {"colour"}, {"code"})
+            pad = self.obj(doc["pad"], "terrain.detail.pad", {"colour"}, {"code", "areas", "covered"})
             code = pad.get("code")
             if code is not None and not isinstance(code, str):
                 raise self.fail("terrain.detail.pad.code", f"expected a texture code's name, got {_show(code)}")
             pad_look = self.codes.look(code, False, "terrain.detail.pad.code")[0]
             pad_colour = self.colour(pad["colour"], "terrain.detail.pad.colour")
-            flatten = ((db.info or {}).get("recipe") or {}).get("flatten") or []
-            pads = np.array([[p[0] + offset[0], p[1] + offset[1], p[2] + offset[0], p[3] + offset[1], p[5]]
-                             for p in flatten], np.float64).reshape(-1, 5)
+            covered = pad.get("covered", False)
+            if not isinstance(covered, bool):
+                raise self.fail("terrain.detail.pad.covered", f"expected true or false, got {_show(covered)}")
+            if "areas" in pad:
+                areas = pad["areas"]
+                if not isinstance(areas, list) or not areas:
+                    raise self.fail("terrain.detail.pad.areas", f"expected a list of [x0, y0, x1, y1, blend_m], "
+                                                                f"got {_show(areas)}")
+                rows = []
+                for i, area in enumerate(areas):
+                    where = f"terrain.detail.pad.areas[{i}]"
+                    if not isinstance(area, list) or len(area) != 5:
+                        raise self.fail(where, f"expected [x0, y0, x1, y1, blend_m], got {_show(area)}")
+                    x0, y0, x1, y1, blend = (self.number(v, f"{where}[{k}]") for k, v in enumerate(area))
+                    if not (x0 < x1 and y0 < y1 and blend >= 0.0):
+                        raise self.fail(where, f"{area!r} is not x0 < x1, y0 < y1, blend_m >= 0"[:200])
+                    rows.append([x0, y0, x1, y1, blend])
+                pads = np.array(rows, np.float64)
+            else:
+                # The terrain database's flattened pads, moved with it.
+                flatten = ((db.info or {}).get("recipe") or {}).get("flatten") or []
+                pads = np.array([[p[0] + offset[0], p[1] + offset[1], p[2] + offset[0], p[3] + offset[1], p[5]]
+                                 for p in flatten], np.float64).reshape(-1, 5)
         # The relief's mean brightness, from a sparse sample of the finest level's pages.
         sample = np.asarray(db.rgb[::max(1, db.rgb.shape[0] // 16), ::8, ::8, 0], np.uint8)
         linear = srgb_to_linear(sample.reshape(-1, 3) / 255.0)
         lum = float(np.mean(linear @ np.array([0.2126, 0.7152, 0.0722])))
         return TerrainLand(grass=looks["grass"], field=looks["field"], rock=looks["rock"], forest=looks["forest"],
-                           pad=pad_look,
+                           pad=pad_look, pad_covered=covered,
                            pad_colour=pad_colour, pads=pads, relief_luminance=max(lum, 1e-3))
 
     def haze(self, doc: Any) -> Haze | None:

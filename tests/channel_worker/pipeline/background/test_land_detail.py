@@ -5,6 +5,7 @@ range, and a scene without terrain.detail drawn as before."""
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -92,13 +93,27 @@ def test_the_scene_names_the_detail_and_the_pads_come_from_the_terrain(demo):
     from channel_worker.pipeline.geometry.view import frame_constants, make_view
 
     land = demo.terrain_land
-    assert land is not None and min(land.grass, land.field, land.rock, land.pad) >= 0
-    # The bundled terrain's recipe flattens x -450..550, y -1300..1300 with a 400 m blend.
-    assert land.pads.tolist() == [[-450.0, -1300.0, 550.0, 1300.0, 400.0]]
+    assert land is not None and min(land.grass, land.field, land.rock, land.forest, land.pad) >= 0
+    # The bundled scene's pad area is its grass faces' (which cover it), feathered 460 m out.
+    assert land.pads.tolist() == [[-380.0, -1250.0, 380.0, 1250.0, 460.0]] and land.pad_covered
     frame = frame_constants(make_view(DOWN, look_down(0.0, 0.0)), demo, OPTIONS.sample_offsets())
     assert terrain_detail(demo, frame).on
     # A scene without terrain.detail: off, and the cast skips it.
     assert not terrain_detail(dataclasses.replace(demo, terrain_land=None), frame).on
+
+
+def test_without_areas_the_pads_are_the_terrains_flattened_ones(tmp_path):
+    import json
+
+    doc = json.loads(demo_scene_path().read_text(encoding="utf-8"))
+    del doc["terrain"]["detail"]["pad"]["areas"]
+    doc["terrain"]["offset_m"] = [10.0, -20.0, 0.0]
+    path = tmp_path / "scene.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    land = load_scene(path).terrain_land
+    # The bundled terrain's recipe flattens x -450..550, y -1300..1300 with a 400 m blend; the
+    # terrain's offset moves them with it.
+    assert land.pads.tolist() == [[-440.0, -1320.0, 560.0, 1280.0, 400.0]]
 
 
 @pytest.mark.parametrize("detail, field", [
@@ -107,6 +122,10 @@ def test_the_scene_names_the_detail_and_the_pads_come_from_the_terrain(demo):
     ({"pad": {"code": "grass"}}, "terrain.detail.pad"),
     ({"pad": {"colour": "green"}}, "terrain.detail.pad.colour"),
     ({"meadow": "grass"}, "terrain.detail"),
+    ({"pad": {"colour": "#00ff00", "covered": "yes"}}, "terrain.detail.pad.covered"),
+    ({"pad": {"colour": "#00ff00", "areas": []}}, "terrain.detail.pad.areas"),
+    ({"pad": {"colour": "#00ff00", "areas": [[0, 0, -1, 1, 5]]}}, "terrain.detail.pad.areas[0]"),
+    ({"pad": {"colour": "#00ff00", "areas": [[0, 0, 1, 1, "wide"]]}}, "terrain.detail.pad.areas[0][4]"),
 ])
 def test_a_bad_detail_is_refused_naming_the_field(tmp_path, detail, field):
     import json
@@ -117,7 +136,7 @@ def test_a_bad_detail_is_refused_naming_the_field(tmp_path, detail, field):
     doc["terrain"]["detail"] = detail
     path = tmp_path / "scene.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
-    with pytest.raises(SceneError, match=field.replace(".", r"\.")):
+    with pytest.raises(SceneError, match=re.escape(field)):
         load_scene(path)
 
 
