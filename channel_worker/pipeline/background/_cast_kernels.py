@@ -69,10 +69,11 @@ _ROW, _AR, _AG, _AB, _AW, _IR = 0, 1, 2, 3, 4, 5
 _R1, _Z1, _R2, _Z2 = 6, 7, 8, 9  # the last segment emitted
 _TANMAX = 10  # tangent of the highest elevation seen so far (the line's horizon)
 _SMAX = 11  # the horizon's position along the line (steps)
-_GROUND = 12  # what the last surface emitted is: 1 ground (a voxel's top), 2 a tree pattern's top, 0 else
+_GROUND = 12  # what the last surface emitted is: 1 ground, 2 a tree pattern's top, 3 its side, 0 else
 _SLOPE = 13  # that voxel's slope (tangent), for the land's detail (TerrainDetail)
 _DETAIL = 14  # 1: the line draws the land's detail (TerrainDetail.on)
 _CANOPY = 2.0  # _GROUND's value for a tree's top
+_CANOPY_SIDE = 3.0  # and for a stand's side
 _CELL_I, _CELL_J, _CELL_FIELD = 15, 16, 17  # the last field cell _detail looked at, and its verdict
 _STATE = 18
 # The line's buffer, a row per step: premultiplied colour (after haze and fog once the line is
@@ -144,7 +145,7 @@ class _Line(NamedTuple):
     azimuth and vertical component z0 + z1 s (both affine in s: the screen maps linearly to
     eye rays). n: steps. tan_lo, tan_hi: elevation tangents at s = 0 and s = n (-inf or +inf
     where that end is the nadir or zenith). axh: the fog axis's horizontal component along
-    the azimuth. dx, dy: the azimuth's unit direction (east, north); ex, ey: the eye's ground
+    the azimuth. dx, dy: the azimuth's unit direction (east, north); ex, ey, ez: the eye's
     position relative to the database origin, metres."""
 
     h0: float
@@ -159,6 +160,7 @@ class _Line(NamedTuple):
     dy: float
     ex: float
     ey: float
+    ez: float
 
 
 @njit(cache=True, inline="always")
@@ -427,14 +429,21 @@ def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
     across = max(rng * abs(ln.h0 * ln.z1 - ln.z0 * ln.h1) / norm2, 1e-6)  # floor: a footprint
     along = across / max(graze, 1e-3)  # guard: a ray along the ground
     fp = max(along, across)
-    if ground == _CANOPY:
-        # A forest's canopy: its code's texture over the pattern's colour (crowns, gaps), as
-        # every class's, no pads or fields.
+    if ground >= _CANOPY:
+        # A forest's canopy and sides: its code's texture over the pattern's colour (crowns and
+        # gaps, foliage and trunks), no pads or fields. A side is read in (x + y, height): it
+        # faces along x or y, so the sum runs along it; along the line the height changes.
         c = T_CLASSES + FOREST * T_CLASS_N
         look = int(t[c])
         if look >= 0 and _shows(t, c, fp, across):
-            mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, x, y,
-                                            ln.dx * along, ln.dy * along, -ln.dy * across, ln.dx * across)
+            row = detail.looks[look]
+            if ground == _CANOPY:
+                mr, mg, mb = texture_modulation(store, row, detail.texture_filter, x, y, ln.dx * along,
+                                                ln.dy * along, -ln.dy * across, ln.dx * across)
+            else:
+                z = t[T_ORIGIN + 2] + ln.ez + rng * v / norm
+                mr, mg, mb = texture_modulation(store, row, detail.texture_filter, x + y, z, 0.0, along,
+                                                across, 0.0)
             return r * mr, g * mg, b * mb
         return r, g, b
     # The pads: weight 1 inside, smoothstep down to 0 over the blend outside.
@@ -793,7 +802,7 @@ def _line(i, lo_k, hi_k, st, buf, meta, pages, detail, fan, limits, air, frame):
     z_hi = z0 + z1 * n
     tan_hi = (z_hi / h_hi) if h_hi > 1e-12 * (abs(h_hi) + abs(z_hi)) else math.inf
     axh = air[F_WORLD_AXIS] * sphi + air[F_WORLD_AXIS + 1] * cphi
-    ln = _Line(h0, h1, z0, z1, n, tan_lo, tan_hi, axh, sphi, cphi, limits.eye[0], limits.eye[1])
+    ln = _Line(h0, h1, z0, z1, n, tan_lo, tan_hi, axh, sphi, cphi, limits.eye[0], limits.eye[1], limits.eye[2])
     colours = _Colours(pages.rgb, pages.lut)
     for q in range(_STATE):
         st[q] = 0.0
@@ -1137,14 +1146,14 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, colours, limits, tan_lo, air):
             z_prev = z_in
             if z_in > r * tan_max:
                 _wall(st, ln, air, buf, colours, r, z_in - _SKIRT_M,
-                      z_in, _voxel_rgb(colours, page, vy, vx, u0, v0))
+                      z_in, _voxel_rgb(colours, page, vy, vx, u0, v0), 0.0)
                 tan_max = st[_TANMAX]
         elif abs(z_in - z_prev) > _WALL_DZ:
             cached = False  # the surface jumps here: nothing of the last voxel carries over
             if z_in > z_prev and z_in > r * tan_max:
                 # A step up between voxels (a cliff, a building edge): a vertical wall at r.
                 _wall(st, ln, air, buf, colours, r, z_prev, z_in,
-                      _voxel_rgb(colours, page, vy, vx, u0, v0))
+                      _voxel_rgb(colours, page, vy, vx, u0, v0), 0.0)
                 tan_max = st[_TANMAX]
         k = pages.pattern[page, vy, vx] if level == 0 else 0
         if k > 0:
@@ -1156,11 +1165,13 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, colours, limits, tan_lo, air):
             for q in range(4):
                 top = max(top, pages.z[page, vy, vx, q] - ez)
             lo = z_in
+            # A stand's side is foliage and trunks, not a painted wall: the forest's detail.
+            side = _CANOPY_SIDE if pages.pat_canopy[k] else 0.0
             for band in range(pages.pat_bands[k]):
                 hi = top + pages.pat_top[k, band]
                 if hi > r * tan_max:
                     _wall(st, ln, air, buf, colours, r, lo, hi,
-                          _rgb64(pages.pat_rgb[k, band]))
+                          _rgb64(pages.pat_rgb[k, band]), side)
                     tan_max = st[_TANMAX]
                 lo = hi
             last = pages.pat_bands[k] - 1
@@ -1252,14 +1263,15 @@ def _rgb64(rgb):
 
 
 @borrowing
-def _wall(st, ln, air, buf, colours, r, z_lo, z_hi, rgb):
+def _wall(st, ln, air, buf, colours, r, z_lo, z_hi, rgb, ground):
     """A vertical face of one linear colour rgb at ground range r from height z_lo to z_hi
-    (relative to the eye, metres)."""
+    (relative to the eye, metres); ground: what it is for the land's detail (_GROUND's
+    values: 0 none, _CANOPY_SIDE a stand's side)."""
     tb = _tan_of(r, z_hi)
     tmax = st[_TANMAX]
     if tb <= tmax:
         return
-    st[_GROUND] = 0.0
+    st[_GROUND] = ground
     ta = _tan_of(r, z_lo)
     sa = st[_SMAX] if ta <= tmax else _s_of_tan(ln, ta)
     _emit(st, ln, air, buf, colours, sa, _s_of_tan(ln, tb), tb, (r, z_lo, r, z_hi),

@@ -138,17 +138,17 @@ GRASS, FIELD, ROCK, PAD, FOREST = 0, 1, 2, 3, 4
 LAND_CLASSES = 5
 #: Where the values sit in TerrainDetail.table (one array: the cast passes it down its calls
 #: whole, and fewer arrays are fewer arguments).
-T_ORIGIN = 0  # 2: world x, y of the database origin (texture coordinates are world metres)
-T_ROCK_SLOPE = 2  # slope (tangent) above which the ground is rock
-T_FIELD_SLOPE = 3  # slope (tangent) within which a field cell's corners lie from its centre
-T_FIELD_SHARE = 4  # share (0..1) of the field cells that hold a field
-T_FIELD_W = 5  # field cell width (east), metres, > 0
-T_FIELD_H = 6  # field cell height (north), metres, > 0
-T_HEDGE_M = 7  # half-width of the hedge along a field's edge, metres
-T_LUM_REF = 8  # the relief colours' mean luminance (linear), > 0
-T_HEDGE = 9  # 3: a hedge's colour factor on its field
-T_PAD_COVERED = 12  # 1: the scene's faces cover the pads (no texture read inside them)
-T_CLASSES = 13  # LAND_CLASSES rows of T_CLASS_N, below
+T_ORIGIN = 0  # 3: world x, y, z of the database origin (texture coordinates are world metres)
+T_ROCK_SLOPE = 3  # slope (tangent) above which the ground is rock
+T_FIELD_SLOPE = 4  # slope (tangent) within which a field cell's corners lie from its centre
+T_FIELD_SHARE = 5  # share (0..1) of the field cells that hold a field
+T_FIELD_W = 6  # field cell width (east), metres, > 0
+T_FIELD_H = 7  # field cell height (north), metres, > 0
+T_HEDGE_M = 8  # half-width of the hedge along a field's edge, metres
+T_LUM_REF = 9  # the relief colours' mean luminance (linear), > 0
+T_HEDGE = 10  # 3: a hedge's colour factor on its field
+T_PAD_COVERED = 13  # 1: the scene's faces cover the pads (no texture read inside them)
+T_CLASSES = 14  # LAND_CLASSES rows of T_CLASS_N, below
 #: A class's row: look row (-1: none), linear colour r, g, b, the share (mix) of the relief's
 #: hue it takes keeping the relief's brightness (PAD: its lit colour, taken whole), then for each
 #: of its code's textures (MAX_CODE_TEXTURES) the footprints (metres) from which it has faded

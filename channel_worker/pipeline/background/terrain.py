@@ -178,7 +178,7 @@ def terrain_detail(database: Database, frame: FrameConstants) -> TerrainDetail:
     pads = np.asarray(land.pads, np.float64).reshape(-1, 5) if land is not None and on else np.zeros((0, 5))
     t = np.zeros(T_FIELDS + fields.size + pads.size)
     if terrain is not None:
-        t[T_ORIGIN:T_ORIGIN + 2] = terrain.origin[:2]
+        t[T_ORIGIN:T_ORIGIN + 3] = terrain.origin[:3]
     t[T_ROCK_SLOPE], t[T_FIELD_SLOPE], t[T_FIELD_SHARE] = ROCK_SLOPE, FIELD_SLOPE, FIELD_SHARE
     t[T_FIELD_W], t[T_FIELD_H], t[T_HEDGE_M] = FIELD_M[0], FIELD_M[1], HEDGE_HALF_M
     t[T_LUM_REF] = 1.0
