@@ -3,10 +3,11 @@ resample left in the background stage, run only for a scene with clouds.
 
 JP H07-76990's cloud frame buffer is one eighth of the ground's linear resolution and "an
 interpolation stage smooths the cloud scene between coarse pixels": every pixel looks the
-cloud image up at its exact azimuth and elevation, bilinearly. The mapping is computed
-exactly at the corners of blocks of pixels and interpolated inside (near the nadir or zenith,
-where azimuth turns fast, a block's quarters, or each point exactly), and a block whose cloud
-texels are all clear costs one test: under clear air the pass does nothing per pixel.
+cloud image up at its exact azimuth and elevation, bilinearly, and where a cloud's edge
+crosses the image takes the opacity from the finer samples there (clouds.py). The mapping is
+computed exactly at the corners of blocks of pixels and interpolated inside (near the nadir or
+zenith, where azimuth turns fast, a block's quarters, or each point exactly), and a block whose
+cloud texels are all clear costs one test: under clear air the pass does nothing per pixel.
 
 The per-row and per-block functions are compiled without reference counting (jit.borrowing).
 """
@@ -149,7 +150,9 @@ def _over_block(frame, clouds, range_m, rgb, out_cloud, blk):
 def clear_air(clouds, cols, rows):
     """Whether every cloud texel an interpolated block's pixel centres can read (_cloud_over:
     the two columns and rows around each point, over the texel box of the block's corners,
-    which bounds its bilinear interior) has opacity 0. False for a box wider than 8 texels."""
+    which bounds its bilinear interior) has opacity 0 and no quad there is sampled finer (a
+    quad the edge reached can hold cloud between clear corners, clouds.seam_quads). False for
+    a box wider than 8 texels."""
     texels = clouds.texels
     ncc = texels.shape[0]
     nrc = texels.shape[1]
@@ -162,7 +165,9 @@ def clear_air(clouds, cols, rows):
     for c in range(c_lo, c_hi + 1):
         cc = _column(c, ncc, clouds.full)
         for r in range(_row(r_lo, nrc), _row(r_hi, nrc) + 1):
-            if texels[cc, r, 3] != 0.0:
+            # The quad at the clamped (column, row): that quad itself, or, past the image's
+            # border, one the pixels cannot read (a needless False at worst).
+            if texels[cc, r, 3] != 0.0 or clouds.quad[cc, r] >= 0:
                 return False
     return True
 
@@ -210,49 +215,61 @@ def _block_point(sx, sy, blk, frame, clouds):
 def _cloud_over(clouds, c, rr, behind, rgb, out_cloud, y, x):
     """Interpolate the cloud image at (c, rr), keep it for pixel (x, y) in out_cloud, and lay
     it over colour rgb if what that colour shows lies beyond the cloud's entry range (behind,
-    metres)."""
+    metres).
+
+    Bilinear between the four texels around (c, rr). In a quad a cloud's edge crosses
+    (CloudImage.quad) the opacity and the entry range are bilinear between the four of its
+    fine samples around (c, rr) instead, so the edge is as sharp as the pixels; the colour
+    keeps the coarse texels' (their premultiplied colour over their opacity, scaled to the
+    fine opacity): inside the cloud it stays as blurry as JP H07-76990's coarse image, and it
+    meets the coarse quads beside without a seam. Where none of the four texels has cloud
+    (a quad the edge reached, clouds.seam_quads) the fine samples' own colour is taken."""
     texels = clouds.texels
     ncc = texels.shape[0]
     nrc = texels.shape[1]
     ci = int(math.floor(c))
+    ri = int(math.floor(rr))
     c0 = _column(ci, ncc, clouds.full)
     c1 = _column(ci + 1, ncc, clouds.full)
-    fc = c - ci
-    ri = int(math.floor(rr))
     r0 = _row(ri, nrc)
     r1 = _row(ri + 1, nrc)
-    fr = rr - ri
-    w00 = (1.0 - fc) * (1.0 - fr)
-    w10 = fc * (1.0 - fr)
-    w01 = (1.0 - fc) * fr
-    w11 = fc * fr
-    a00 = w00 * texels[c0, r0, 3]
-    a10 = w10 * texels[c1, r0, 3]
-    a01 = w01 * texels[c0, r1, 3]
-    a11 = w11 * texels[c1, r1, 3]
-    alpha = a00 + a10 + a01 + a11
+    s00 = texels[c0, r0]
+    s10 = texels[c1, r0]
+    s01 = texels[c0, r1]
+    s11 = texels[c1, r1]
+    cr, cg, cb, alpha, entry = _bilinear5(s00, s10, s01, s11, c - ci, rr - ri)
+    t = _quad(clouds, ci, ri)
+    if t >= 0:
+        fine = clouds.fine
+        f = fine.shape[1] - 1
+        fx = (c - ci) * f
+        fy = (rr - ri) * f
+        fa = min(int(fx), f - 1)  # c - ci < 1, but (c - ci) * f can round up to f
+        fb = min(int(fy), f - 1)
+        fr, fg, fbl, fine_alpha, entry = _bilinear5(fine[t, fa, fb], fine[t, fa + 1, fb],
+                                                    fine[t, fa, fb + 1],
+                                                    fine[t, fa + 1, fb + 1], fx - fa, fy - fb)
+        corners = s00[3] + s10[3] + s01[3] + s11[3]
+        if corners <= 0.0:
+            cr, cg, cb = fr, fg, fbl  # the fine samples carry colour (CloudQuads.shaded)
+        else:
+            if alpha <= 0.0:
+                # On the quad's side away from its cloudy corners: their colour, unweighted.
+                cr = s00[0] + s10[0] + s01[0] + s11[0]
+                cg = s00[1] + s10[1] + s01[1] + s11[1]
+                cb = s00[2] + s10[2] + s01[2] + s11[2]
+                alpha = corners
+            scale = fine_alpha / alpha  # guard: alpha > 0
+            cr *= scale
+            cg *= scale
+            cb *= scale
+        alpha = fine_alpha
     if alpha <= 0.0:
         _clear_cloud(out_cloud, y, x)
         return rgb
-    # Entry range weighted by opacity, over the texels that have cloud (finite entry).
-    num = 0.0
-    den = 0.0
-    if a00 > 0.0:
-        num += a00 * texels[c0, r0, 4]
-        den += a00
-    if a10 > 0.0:
-        num += a10 * texels[c1, r0, 4]
-        den += a10
-    if a01 > 0.0:
-        num += a01 * texels[c0, r1, 4]
-        den += a01
-    if a11 > 0.0:
-        num += a11 * texels[c1, r1, 4]
-        den += a11
-    entry = num / den  # guard: den = alpha > 0
-    for ch in range(3):
-        out_cloud[y, x, ch] = (w00 * texels[c0, r0, ch] + w10 * texels[c1, r0, ch]
-                               + w01 * texels[c0, r1, ch] + w11 * texels[c1, r1, ch])
+    out_cloud[y, x, 0] = cr
+    out_cloud[y, x, 1] = cg
+    out_cloud[y, x, 2] = cb
     out_cloud[y, x, 3] = alpha
     out_cloud[y, x, 4] = entry
     r, g, b = rgb
@@ -261,6 +278,51 @@ def _cloud_over(clouds, c, rr, behind, rgb, out_cloud, y, x):
         return (out_cloud[y, x, 0] + keep * r, out_cloud[y, x, 1] + keep * g,
                 out_cloud[y, x, 2] + keep * b)
     return r, g, b
+
+
+@njit(cache=True, inline="always")
+def _bilinear5(s00, s10, s01, s11, fc, fr):
+    """Four cloud samples (CLOUD_CHANNELS each: left and right below, left and right above)
+    interpolated at (fc, fr) in 0..1: premultiplied red, green, blue, opacity, and the entry
+    range weighted by opacity over the samples that have cloud (finite entry; +inf where the
+    opacity is 0)."""
+    w00 = (1.0 - fc) * (1.0 - fr)
+    w10 = fc * (1.0 - fr)
+    w01 = (1.0 - fc) * fr
+    w11 = fc * fr
+    a00 = w00 * s00[3]
+    a10 = w10 * s10[3]
+    a01 = w01 * s01[3]
+    a11 = w11 * s11[3]
+    alpha = a00 + a10 + a01 + a11
+    num = 0.0
+    if a00 > 0.0:
+        num += a00 * s00[4]
+    if a10 > 0.0:
+        num += a10 * s10[4]
+    if a01 > 0.0:
+        num += a01 * s01[4]
+    if a11 > 0.0:
+        num += a11 * s11[4]
+    entry = num / alpha if alpha > 0.0 else math.inf  # guard: alpha > 0
+    return (w00 * s00[0] + w10 * s10[0] + w01 * s01[0] + w11 * s11[0],
+            w00 * s00[1] + w10 * s10[1] + w01 * s01[1] + w11 * s11[1],
+            w00 * s00[2] + w10 * s10[2] + w01 * s01[2] + w11 * s11[2], alpha, entry)
+
+
+@njit(cache=True, inline="always")
+def _quad(clouds, ci, ri):
+    """The index in clouds.fine of quad (ci, ri) (CloudImage), or -1: not refined, or past the
+    image's rows (or its columns, unless they wrap), where the texels are clamped."""
+    quad = clouds.quad
+    ncc = quad.shape[0]
+    if ri < 0 or ri >= quad.shape[1] - 1:
+        return -1
+    if clouds.full:
+        return quad[ci % ncc, ri]
+    if ci < 0 or ci >= ncc - 1:
+        return -1
+    return quad[ci, ri]
 
 
 @njit(cache=True, inline="always")

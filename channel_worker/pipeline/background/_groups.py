@@ -10,6 +10,7 @@ glance what it consumes:
                 threads)
     sample_depth_kernel(frame, aux: CastPixels, depth: SampleDepth, out_inv_z, threads)
     scan_clouds_kernel(slabs: CloudSlabs, columns: CloudColumns, eye, r_far, air, out)
+    refine_clouds_kernel(slabs: CloudSlabs, quads: CloudQuads, eye, r_far, air, threads, out)
     cloud_over_kernel(frame, clouds: CloudImage, block, range_m, rgb, out_cloud, threads)
     sky_earth_kernel(frame, air, sky: SkyTable, out_rgb, out_range)
 
@@ -216,7 +217,11 @@ class SkyTable(NamedTuple):
 
 class CloudImage(NamedTuple):
     """The coarse cloud image (clouds.scan_clouds) as cloud_over_kernel lays it over the
-    background.
+    background, with the finer samples of the quads a cloud's edge crosses.
+
+    A quad (c, r) is the square between the centres of texels (c, r), (c + 1, r), (c, r + 1)
+    and (c + 1, r + 1) (column c + 1 is column 0 past the last when full): the points whose
+    floor is (c, r) in cloud image coordinates (texel centres at integers).
 
     Attributes:
         texels: (ncols, nrows, CLOUD_CHANNELS) float32.
@@ -227,6 +232,13 @@ class CloudImage(NamedTuple):
         theta0: elevation of row 0's lower edge.
         dtheta: row height (elevation).
         span: azimuth the columns cover (ncols dphi).
+        quad: (ncols, nrows) int32 the index in fine of quad (c, r), or -1 where the quad is
+            read from its four corner texels alone.
+        fine: (quads, f + 1, f + 1, CLOUD_CHANNELS) float32 each refined quad's samples on
+            an f x f grid (f = clouds.REFINE): fine[t, a, b] lies a / f texel right of and
+            b / f texel above the quad's corner (c, r), so fine[t, 0, 0] is that texel's ray
+            again. Their colour is 0 where the quad's corner texels have cloud (the overlay
+            takes its colour from those; CloudQuads.shaded).
     """
 
     texels: np.ndarray
@@ -236,6 +248,8 @@ class CloudImage(NamedTuple):
     theta0: float
     dtheta: float
     span: float
+    quad: np.ndarray
+    fine: np.ndarray
 
 
 class SampleDepth(NamedTuple):
@@ -279,6 +293,7 @@ class CloudSlabs(NamedTuple):
         cell: node spacing, metres.
         colour: (3,) linear RGB of a cloud's lit top.
         base_shade: brightness of the base relative to the top.
+        z_min, z_max: the lowest base and the highest top of any node, world metres.
     """
 
     base: np.ndarray
@@ -287,6 +302,8 @@ class CloudSlabs(NamedTuple):
     cell: float
     colour: np.ndarray
     base_shade: float
+    z_min: float
+    z_max: float
 
 
 class CloudColumns(NamedTuple):
@@ -307,3 +324,36 @@ class CloudColumns(NamedTuple):
     row_tan: np.ndarray
     row_inv_cos: np.ndarray
     row_sin: np.ndarray
+
+
+class CloudQuads(NamedTuple):
+    """The quads of the coarse cloud image to sample finer (clouds.edge_quads), as the
+    refining scan walks them: grouped by column, one radial scan per fine column of a group.
+
+    Fine sample (a, b) of quad (c, r) looks at azimuth phi_lo + (c + a / factor + 1/2) dphi
+    and elevation theta0 + (r + b / factor + 1/2) dtheta (CloudImage's grid; kept short of
+    +-90 degrees).
+
+    Attributes:
+        factor: fine samples per texel along each axis (clouds.REFINE).
+        phi_lo, dphi: the coarse image's columns (CloudImage).
+        row_tan, row_inv_cos, row_sin: (nrows, factor + 1) float64 tangent, 1 / cosine and
+            sine of fine row b's elevation in the quads of row r, at [r, b].
+        col: (G,) int64 the column of each group of quads.
+        start: (G + 1,) int64 group g holds quads start[g] .. start[g + 1] - 1.
+        row: (quads,) int64 each quad's row, ascending within a group.
+        shaded: (quads,) bool whether the quad's fine samples need their colour: its corner
+            texels have no cloud (elsewhere the overlay takes the colour from them, and the
+            fine samples' colour is left 0).
+    """
+
+    factor: int
+    phi_lo: float
+    dphi: float
+    row_tan: np.ndarray
+    row_inv_cos: np.ndarray
+    row_sin: np.ndarray
+    col: np.ndarray
+    start: np.ndarray
+    row: np.ndarray
+    shaded: np.ndarray
