@@ -429,26 +429,10 @@ def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
     across = max(rng * abs(ln.h0 * ln.z1 - ln.z0 * ln.h1) / norm2, 1e-6)  # floor: a footprint
     along = across / max(graze, 1e-3)  # guard: a ray along the ground
     fp = max(along, across)
-    if ground >= _CANOPY:
-        # A forest's canopy and sides: its code's texture over the pattern's colour (crowns and
-        # gaps, foliage and trunks), no pads or fields. A side is read in (x + y, height): it
-        # faces along x or y, so the sum runs along it; along the line the height changes.
-        c = T_CLASSES + FOREST * T_CLASS_N
-        look = int(t[c])
-        if look >= 0 and _shows(t, c, fp, across):
-            row = detail.looks[look]
-            if ground == _CANOPY:
-                mr, mg, mb = texture_modulation(store, row, detail.texture_filter, x, y, ln.dx * along,
-                                                ln.dy * along, -ln.dy * across, ln.dx * across)
-            else:
-                z = t[T_ORIGIN + 2] + ln.ez + rng * v / norm
-                mr, mg, mb = texture_modulation(store, row, detail.texture_filter, x + y, z, 0.0, along,
-                                                across, 0.0)
-            return r * mr, g * mg, b * mb
-        return r, g, b
-    # The pads: weight 1 inside, smoothstep down to 0 over the blend outside.
+    canopy = ground >= _CANOPY
+    # The pads: weight 1 inside, smoothstep down to 0 over the blend outside (not on trees).
     wp = 0.0
-    for k in range(int(t[T_PADS_N])):
+    for k in range(0 if canopy else int(t[T_PADS_N])):
         o = int(t[T_PADS_AT]) + 5 * k
         ddx = max(max(t[o] - x, x - t[o + 2]), 0.0)
         ddy = max(max(t[o + 1] - y, y - t[o + 3]), 0.0)
@@ -471,8 +455,20 @@ def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
         hr = 1.0
         hg = 1.0
         hb = 1.0
-        swap = False
-        if slope > t[T_ROCK_SLOPE]:
+        # The texture plane: world (x, y), and the pixel's sides along and across the line.
+        u = x
+        vv = y
+        du = (ln.dx * along, ln.dy * along, -ln.dy * across, ln.dx * across)
+        if canopy:
+            # A forest's canopy and sides: its code's texture over the pattern's colour (crowns
+            # and gaps, foliage and trunks; its mix is 0). A side is read in (x + y, height): it
+            # faces along x or y, so the sum runs along it; along the line the height changes.
+            c = T_CLASSES + FOREST * T_CLASS_N
+            if ground != _CANOPY:
+                u = x + y
+                vv = t[T_ORIGIN + 2] + ln.ez + rng * v / norm
+                du = (0.0, along, across, 0.0)
+        elif slope > t[T_ROCK_SLOPE]:
             c = T_CLASSES + ROCK * T_CLASS_N
             tr = t[c + 1]
             tg = t[c + 2]
@@ -502,7 +498,11 @@ def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
                 tr = t[f]
                 tg = t[f + 1]
                 tb = t[f + 2]
-                swap = ((hsh >> 24) & 1) == 1  # rows along x instead of y: u and v swapped
+                if (hsh >> 24) & 1:
+                    # Rows along x instead of y: the code's u and v swapped.
+                    u = y
+                    vv = x
+                    du = (du[2], du[3], du[0], du[1])
                 # Hedges: a band along the cell's edges, filtered to the footprint.
                 ex_ = min(x - ci * fw, (ci + 1) * fw - x)
                 ey_ = min(y + shift - cj * fh, (cj + 1) * fh - (y + shift))
@@ -515,16 +515,9 @@ def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
         mb = 1.0
         look = int(t[c])
         if look >= 0 and _shows(t, c, fp, across):
-            ux = ln.dx * along
-            vx = ln.dy * along
-            uy = -ln.dy * across
-            vy = ln.dx * across
-            if swap:
-                mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, y, x,
-                                                uy, vy, ux, vx)
-            else:
-                mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, x, y,
-                                                ux, vx, uy, vy)
+            # One call site for every class: each inlined copy costs compile time.
+            mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, u, vv,
+                                            du[0], du[1], du[2], du[3])
         # The class's colour takes the share mix of the relief colour's hue, keeping its
         # brightness (its hill-shading) relative to the relief's mean.
         mix = t[c + 4]
