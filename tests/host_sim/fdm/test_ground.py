@@ -106,8 +106,7 @@ def test_a_silent_query_service_leaves_the_plane_said_once_and_counted(caplog):
 
 
 def test_a_query_service_that_comes_up_late_takes_over_from_the_plane():
-    with socket_bound() as port:
-        pass  # a free port, closed again: the service starts on it below
+    port = free_port()
     g = QueryGround(f"127.0.0.1:{port}", start_xy_m=(0.0, 0.0), first_wait_s=0.1, timeout_s=0.2)
     try:
         assert g(0.0, 0.0) == 0.0
@@ -128,6 +127,12 @@ def test_the_plane():
     p = Plane(2.5)
     assert p(1e6, -1e6) == 2.5
     p.close()
+
+
+def free_port() -> int:
+    """A TCP port on the loopback that nothing listens on (bound once by the OS, then freed)."""
+    with socket_bound() as port:
+        return port
 
 
 class socket_bound:
