@@ -23,6 +23,7 @@ from .geometry.clip import clip
 from .geometry.cull import cull
 from .geometry.project import project
 from .geometry.transform import to_eye
+from .geometry.trees import plant_trees
 from .geometry.view import frame_constants, make_view
 from .jit import thread_pool_size
 from .resolve.resolve import resolve
@@ -66,6 +67,9 @@ def render_frame(database: Database, channel: ChannelSpec, eyepoint: Eyepoint,
         if options.renderer == "scanline" and atmosphere:
             raise ValueError("renderer: the scanline renderer (a cross-check of the polygon "
                              "visibility) draws no terrain, haze, fog or clouds; use \"subarea\"")
+        if scene.near_trees is not None:
+            with clock("trees"):
+                scene = plant_trees(scene, view)
         with clock("cull"):
             draws = cull(scene, view)
         with clock("transform"):

@@ -75,14 +75,17 @@ _DETAIL = 14  # 1: the line draws the land's detail (TerrainDetail.on)
 _CANOPY = 2.0  # _GROUND's value for a tree's top
 _CANOPY_SIDE = 3.0  # and for a stand's side
 _CELL_I, _CELL_J, _CELL_FIELD = 15, 16, 17  # the last field cell _detail looked at, and its verdict
-_STATE = 18
+_AC = 18  # the current step's coverage by a forest's canopy or sides
+_STATE = 19
 # The line's buffer, a row per step: premultiplied colour (after haze and fog once the line is
 # cast, _through_air), coverage, and 1/z (eye depth, metres) of the surface at the step's
 # centre; for _through_air: the range haze and fog take, and for the land's detail whether
-# the step ends on ground, its slope and the sine of the ray's angle to it.
+# the step ends on ground, its slope, the sine of the ray's angle to it, and the share of its
+# coverage that is a forest's (its texture modulates that share alone: at a stand's edge a
+# step is part meadow).
 _B_R, _B_G, _B_B, _B_A, _B_IZ = 0, 1, 2, 3, 4
-_B_RANGE, _B_GROUND, _B_SLOPE, _B_GRAZE = 5, 6, 7, 8
-_BUF = 9
+_B_RANGE, _B_GROUND, _B_SLOPE, _B_GRAZE, _B_FOREST = 5, 6, 7, 8, 9
+_BUF = 10
 # A line's record in its lane (cast_kernel): the steps it walks, the steps it owns, and its
 # steps.
 _M_LO, _M_HI, _M_FIRST, _M_LAST, _M_N = 0, 1, 2, 3, 4
@@ -290,6 +293,8 @@ def _finish_step(st, ln, air, buf, colours):
     buf[row, _B_GROUND] = ground
     buf[row, _B_SLOPE] = st[_SLOPE]
     buf[row, _B_GRAZE] = graze
+    buf[row, _B_FOREST] = st[_AC] / w if w > 0.0 else 0.0
+    st[_AC] = 0.0
     st[_ROW] = row + 1
     st[_AR] = 0.0
     st[_AG] = 0.0
@@ -316,7 +321,7 @@ def _through_air(ln, buf, lo, hi, air, detail, pages, st):
         rng = buf[row, _B_RANGE]
         if buf[row, _B_GROUND] != 0.0:
             r, g, b = _detail(ln, detail, pages, st, h, v, rng, buf[row, _B_GROUND], buf[row, _B_SLOPE],
-                              buf[row, _B_GRAZE], w, r, g, b)
+                              buf[row, _B_GRAZE], buf[row, _B_FOREST], w, r, g, b)
         if hazy or foggy:
             norm = math.sqrt(h * h + v * v)
             sn = v / norm  # guard: _direction never returns (0, 0)
@@ -405,7 +410,7 @@ def _shows(t, c, fp, across):
 
 # Inlined into _through_air, its one caller.
 @njit(cache=True, inline="always")
-def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
+def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, forest, w, r, g, b):
     """The step's premultiplied colour (r, g, b), coverage w, with the land's detail where its
     centre ray meets the ground (docs/terrain.md "Detail"): the land class's colour and texture
     code over the relief colour, fields and their hedges, and the airfield pads' grass feathered
@@ -518,9 +523,20 @@ def _detail(ln, detail, pages, st, h, v, rng, ground, slope, graze, w, r, g, b):
             # One call site for every class: each inlined copy costs compile time.
             mr, mg, mb = texture_modulation(store, detail.looks[look], detail.texture_filter, u, vv,
                                             du[0], du[1], du[2], du[3])
+            if canopy:
+                # The forest's share of the step alone: at a stand's edge the rest is meadow,
+                # which the canopy's (strong) modulation would light up as a bright rim.
+                mr = 1.0 + forest * (mr - 1.0)
+                mg = 1.0 + forest * (mg - 1.0)
+                mb = 1.0 + forest * (mb - 1.0)
         # The class's colour takes the share mix of the relief colour's hue, keeping its
         # brightness (its hill-shading) relative to the relief's mean.
         mix = t[c + 4]
+        if canopy:
+            # A forest takes none of the class colours (its mix is 0); the meadow's share of a
+            # step at a stand's foot takes the meadow's (the relief's own hue showed there as
+            # a rim).
+            mix = (1.0 - forest) * t[T_CLASSES + GRASS * T_CLASS_N + 4]
         k = (0.2126 * r + 0.7152 * g + 0.0722 * b) * mix / t[T_LUM_REF]  # guard: terrain.py keeps it > 0
         gr = ((1.0 - mix) * r + k * tr) * hr * mr
         gg = ((1.0 - mix) * g + k * tg) * hg * mg
@@ -581,6 +597,8 @@ def _emit(st, ln, air, buf, colours, a, b, tb, seg, paint, c_a, c_b):
         st[_AG] += w * 0.5 * (c_a[1] + c_e[1])
         st[_AB] += w * 0.5 * (c_a[2] + c_e[2])
         st[_AW] += w
+        if st[_GROUND] >= _CANOPY:
+            st[_AC] += w
         centre = top - 0.5
         if a <= centre < e:
             hh, vv = _direction(ln, centre)
@@ -1154,28 +1172,43 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, colours, limits, tan_lo, air):
             # wall at the voxel's near side, then its top across the voxel.
             cached = False
             k -= 1
+            zc = pages.z[page, vy, vx]
             top = z_in
             for q in range(4):
-                top = max(top, pages.z[page, vy, vx, q] - ez)
+                top = max(top, zc[q] - ez)
+            grow = 1.0
+            if limits.tree_end > 0.0 and pages.pat_canopy[k]:
+                # Near the eye a forest is polygon trees (scene/forest.py): the block rises
+                # from the ground to its height across the cross-fade, as the trees fade out.
+                # The slant distance to the voxel's centre, as the planting takes it.
+                cx = (ix + 0.5) * spacing - ex
+                cy = (iy + 0.5) * spacing - ey
+                cz = 0.25 * (zc[0] + zc[1] + zc[2] + zc[3]) - ez
+                grow = _growth(math.sqrt(cx * cx + cy * cy + cz * cz), limits.tree_start, limits.tree_end)
+            z_out = top
+            if grow < 1.0:
+                z_out = _corner_z(pages, page, vy, vx, u1, v1) - ez
             lo = z_in
             # A stand's side is foliage and trunks, not a painted wall: the forest's detail.
             side = _CANOPY_SIDE if pages.pat_canopy[k] else 0.0
             for band in range(pages.pat_bands[k]):
-                hi = top + pages.pat_top[k, band]
-                if hi > r * tan_max:
+                hi = z_in + grow * (top + pages.pat_top[k, band] - z_in)
+                if hi > lo and hi > r * tan_max:
                     _wall(st, ln, air, buf, colours, r, lo, hi,
                           _rgb64(pages.pat_rgb[k, band]), side)
                     tan_max = st[_TANMAX]
                 lo = hi
             last = pages.pat_bands[k] - 1
             c_top = _rgb64(pages.pat_rgb[k, last])
-            if lo > r_next * tan_max:
+            # The top: flat at full height; while the block rises, between the ground and it.
+            far = z_out + grow * (top + pages.pat_top[k, last] - z_out)
+            if lo > r * tan_max or far > r_next * tan_max:
                 # A tree's canopy takes the forest's detail; a roof none.
                 st[_GROUND] = _CANOPY if pages.pat_canopy[k] else 0.0
-                _surface(st, ln, air, buf, colours, (r, lo, r_next, lo), math.nan,
+                _surface(st, ln, air, buf, colours, (r, lo, r_next, far), math.nan,
                          _Paint(-1, 0, 0, 0.0, 0.0, 0.0, 0.0, c_top), c_top, c_top)
                 tan_max = st[_TANMAX]
-            z_prev = lo  # the drop back to the ground beyond is never seen from outside
+            z_prev = far  # the drop back to the ground beyond is never seen from outside
         else:
             z_out = _corner_z(pages, page, vy, vx, u1, v1) - ez
             if z_out > r_next * tan_max or z_in > r * tan_max:
@@ -1246,6 +1279,18 @@ def _walk(st, ln, buf, last_k, dx, dy, pages, colours, limits, tan_lo, air):
             if iy < 0 or iy >= level_ny[level]:
                 break
     return visits
+
+
+@njit(cache=True, inline="always")
+def _growth(d, start, end):
+    """A forest block's share of its height at slant distance d: smoothstep from 0 at start to
+    1 at end (scene/forest.py's tree_growth, which the planting of the near trees uses)."""
+    if d >= end:
+        return 1.0
+    if d <= start:
+        return 0.0
+    t = (d - start) / (end - start)  # guard: start < d < end
+    return t * t * (3.0 - 2.0 * t)
 
 
 @njit(cache=True, inline="always")

@@ -127,11 +127,16 @@ class ScanLimits(NamedTuple):
             metres (inf for the coarsest).
         r_far: ground range beyond which nothing is scanned (the far plane, or opaque haze or
             fog), metres.
+        tree_start, tree_end: slant ranges (metres) over which a forest voxel's block rises
+            from the ground to its full height, cross-fading with the near polygon trees
+            (scene/forest.py); tree_end 0: blocks at every range (no near trees).
     """
 
     eye: np.ndarray
     r_switch: np.ndarray
     r_far: float
+    tree_start: float
+    tree_end: float
 
 
 #: The land classes of TerrainDetail.table.

@@ -23,7 +23,9 @@ import numpy as np
 
 from channel_worker.pipeline.contract import FrameConstants, View
 from channel_worker.pipeline.fog.fog import average_floor
+from channel_worker.pipeline.geometry.trees import view_pixel
 from channel_worker.pipeline.scene.database import Database
+from channel_worker.pipeline.scene.forest import near_tree_ranges
 from channel_worker.pipeline.scene.surfaces import (
     LOOK_AMPLITUDE,
     LOOK_DETAIL,
@@ -134,8 +136,11 @@ def cast_terrain(database: Database, view: View, frame: FrameConstants, air: np.
         counters["terrain_eye_clamped"] = 1
     fan = line_fan(frame)
     visits = np.zeros(fan.aim.shape[0], np.int64)
+    tree_start, tree_end = 0.0, 0.0
+    if database.near_trees is not None:
+        tree_start, tree_end = near_tree_ranges(terrain, database.near_trees, view_pixel(view))
     limits = ScanLimits(eye, _level_switch(terrain, view, eye, level_bias),
-                        _far_range(database, terrain, view))
+                        _far_range(database, terrain, view), tree_start, tree_end)
     cast_kernel(voxel_pages(terrain), terrain_detail(database, frame), fan, limits, air, frame, sky, out,
                 aux, visits, numba.get_num_threads())
     counters["terrain_voxels"] = int(visits.sum())

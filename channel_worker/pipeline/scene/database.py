@@ -132,6 +132,8 @@ class TerrainLand:
             moved by the terrain's offset.
         relief_luminance: the mean linear luminance of the terrain's level-0 colours (> 0):
             a class's colour keeps the relief's brightness relative to it.
+        near_tree_px: a forest voxel spanning more pixels than this is drawn as polygon trees
+            (scene/forest.py); 0: never.
     """
 
     grass: int
@@ -143,6 +145,27 @@ class TerrainLand:
     pad_colour: np.ndarray
     pads: np.ndarray
     relief_luminance: float
+    near_tree_px: float = 0.0
+
+
+#: Opacity steps of the fading near trees (scene/forest.py).
+OPACITY_STEPS = 8
+
+
+@dataclass(frozen=True)
+class NearTrees:
+    """The scene's near trees: which models plant them and how far they reach.
+
+    Attributes:
+        px: a forest voxel is drawn as trees while it spans more than this many pixels.
+        models: (2, 3, OPACITY_STEPS) int64 model index by species (0 fir, 1 broadleaf), size
+            class and opacity step (step s: opacity (s + 1) / OPACITY_STEPS).
+        canopy: (K,) bool per terrain pattern whether it is a forest ("tree").
+    """
+
+    px: float
+    models: np.ndarray
+    canopy: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -166,6 +189,8 @@ class Database:
         terrain_margin_m: a polygon within this height above or below the terrain surface is
             drawn in front of it (a runway on its pad), metres.
         terrain_land: the land's detail over the terrain (TerrainLand), or None: none drawn.
+        near_trees: the polygon trees forest voxels turn into near the eye (NearTrees,
+            scene/forest.py), or None: forests are voxel blocks at every range.
         haze, clouds, fog: the scene's atmosphere (atmosphere.py), each None when absent.
         textures: the texture stores the scene's texture codes name (textures.py).
 
@@ -189,6 +214,7 @@ class Database:
     terrain: TerrainDatabase | None = None
     terrain_margin_m: float = 1.0
     terrain_land: TerrainLand | None = None
+    near_trees: NearTrees | None = None
     haze: Haze | None = None
     clouds: Clouds | None = None
     fog: Fog | None = None

@@ -16,6 +16,7 @@ from services.rig.frame import hpr_matrix
 
 from .atmosphere import KOSCHMIEDER, MAX_FOG_PLANES, Clouds, Fog, Haze, cloud_layer
 from .database import Database, FaceTable, Model, TerrainLand
+from .forest import with_near_trees
 from .surfaces import (
     DEFAULT_CREASE_DEG,
     CodeParser,
@@ -51,6 +52,9 @@ DEFAULT_HAZE_SCALE_HEIGHT_M = 1200.0
 
 #: Terrain databases a scene may name without a path ("database": "bundled:NAME").
 BUNDLED_TERRAIN = ("jacksboro",)
+#: terrain.detail.near_tree_px's default: a forest voxel wider than this many pixels is drawn
+#: as polygon trees (scene/forest.py).
+DEFAULT_NEAR_TREE_PX = 48.0
 
 # Limits of a scene (docs/scene-format.md "Limits"). They are checked on the decoded document's
 # list lengths before anything is built from it, so an oversized scene is refused in
@@ -215,7 +219,7 @@ class _Parser:
         face_counts = np.array([models[m].face_count for m in model_ix], dtype=np.int64)
         face_base = (np.concatenate([[0], np.cumsum(face_counts)[:-1]]).astype(np.int64) if model_ix
                      else np.zeros(0, np.int64))
-        return Database(
+        database = Database(
             models=tuple(models),
             instance_model=np.array(model_ix, dtype=np.int64),
             instance_position=np.array(positions, dtype=np.float64).reshape(-1, 3),
@@ -236,6 +240,8 @@ class _Parser:
             textures=store,
             looks=self.codes.table(),
         )
+        land = database.terrain_land
+        return with_near_trees(database, land.near_tree_px) if land is not None else database
 
     def check_limits(self, doc: dict) -> None:
         """Refuse a scene beyond the limits (MAX_FACE_VERTICES ...) from list lengths alone,
@@ -381,7 +387,7 @@ class _Parser:
         """The optional "terrain.detail" key: texture codes per land class and the pads' grass."""
         if doc is None:
             return None
-        doc = self.obj(doc, "terrain.detail", set(), {"grass", "field", "rock", "forest", "pad"})
+        doc = self.obj(doc, "terrain.detail", set(), {"grass", "field", "rock", "forest", "pad", "near_tree_px"})
         looks = {}
         for key in ("grass", "field", "rock", "forest"):
             code = doc.get(key)
@@ -424,9 +430,11 @@ class _Parser:
         sample = np.asarray(db.rgb[::max(1, db.rgb.shape[0] // 16), ::8, ::8, 0], np.uint8)
         linear = srgb_to_linear(sample.reshape(-1, 3) / 255.0)
         lum = float(np.mean(linear @ np.array([0.2126, 0.7152, 0.0722])))
+        near_px = self.number(doc.get("near_tree_px", DEFAULT_NEAR_TREE_PX), "terrain.detail.near_tree_px", 0.0, 4096.0)
         return TerrainLand(grass=looks["grass"], field=looks["field"], rock=looks["rock"], forest=looks["forest"],
                            pad=pad_look, pad_covered=covered,
-                           pad_colour=pad_colour, pads=pads, relief_luminance=max(lum, 1e-3))
+                           pad_colour=pad_colour, pads=pads, relief_luminance=max(lum, 1e-3),
+                           near_tree_px=near_px)
 
     def haze(self, doc: Any) -> Haze | None:
         """The optional "haze" key."""

@@ -143,10 +143,11 @@ def test_a_bad_detail_is_refused_naming_the_field(tmp_path, detail, field):
 def test_a_forests_canopy_is_textured_not_a_flat_block(demo):
     # Straight down from 150 m over a stand south-west of the airfield: its tree voxels' tops
     # (the canopy) carry the forest's code: crowns and gaps, where the plain pattern is one
-    # flat colour.
+    # flat colour. The blocks themselves: this near, the scene would draw polygon trees.
     ch = ChannelSpec.symmetric("c", 96, 96, 30.0)
     eye = look_down(-900.0, -3270.0, 150.0)
-    detailed = render_frame(demo, ch, eye, OPTIONS).rgb.astype(np.float64)
-    plain = render_frame(dataclasses.replace(demo, terrain_land=None), ch, eye, OPTIONS).rgb.astype(np.float64)
+    blocks = dataclasses.replace(demo, near_trees=None)
+    detailed = render_frame(blocks, ch, eye, OPTIONS).rgb.astype(np.float64)
+    plain = render_frame(dataclasses.replace(blocks, terrain_land=None), ch, eye, OPTIONS).rgb.astype(np.float64)
     assert np.ptp(plain[30:66, 30:66].mean(axis=2)) < 0.01  # the plain canopy: one colour
     assert detailed[30:66, 30:66].mean(axis=2).std() > 5.0 * plain[30:66, 30:66].mean(axis=2).std() + 0.002
