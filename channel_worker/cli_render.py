@@ -5,11 +5,33 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, field_of_view, pixels
 from services.rig.frame import ChannelSpec, Eyepoint
 from services.rig.options import add_render_arguments, from_arguments
 from services.rig.report import FrameReport
+
+#: The image formats `ig render` writes, by suffix, and what each holds. A JPEG (which
+#: OpenImageIO would write as readily) is refused: its lossy blocks smear exactly the edge
+#: anti-aliasing and texture detail a frame grab of an IG is taken to inspect, and it cannot
+#: hold the range channel.
+FORMATS = {".exr": "linear float RGB + Z range in metres", ".png": "sRGB 8-bit"}
+
+
+def output_image(text: str) -> Path:
+    """argparse type of --out: a .exr or .png file in a directory that exists (a mistyped
+    directory is an error, not a new folder somewhere)."""
+    path = Path(text)
+    if path.suffix.lower() not in FORMATS:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a {' or '.join(FORMATS)} file ({'; '.join(f'{k}: {v}' for k, v in FORMATS.items())})")
+    parent = path.parent
+    if not parent.exists():
+        raise argparse.ArgumentTypeError(f"{text!r}: directory {str(parent)!r} does not exist")
+    if not parent.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r}: {str(parent)!r} is not a directory")
+    return path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,8 +51,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--channel-hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
                         help="channel yaw, pitch, roll offset from the aircraft nose, degrees")
     add_render_arguments(parser, renderer=True, with_range=True)
-    parser.add_argument("--out", required=True,
-                        help="output image: .exr (linear float RGB + Z range in metres) or .png (sRGB 8-bit)")
+    parser.add_argument("--out", required=True, type=output_image,
+                        help="output image in an existing directory: "
+                             + " or ".join(f"{k} ({v})" for k, v in FORMATS.items()))
     parser.add_argument("--times", action="store_true", help="print the time of each pipeline stage")
 
 

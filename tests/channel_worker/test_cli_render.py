@@ -125,3 +125,34 @@ def test_an_eye_below_the_terrain_is_said_in_one_warning_line(tmp_path, capsys):
     assert run([str(demo_scene_path()), "--eye", "0", "0", "100", "--width", "48", "--height", "36",
                 "--samples", "1", "--out", str(png)]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name,message", [
+    ("x.jpg", "argument --out: '{out}' is not a .exr or .png file (.exr: linear float RGB + Z range in metres; "
+              ".png: sRGB 8-bit)"),
+    ("x.tif", "argument --out: '{out}' is not a .exr or .png file"),
+    ("x", "argument --out: '{out}' is not a .exr or .png file"),
+    ("missing/dir/x.png", "argument --out: '{out}': directory '{dir}' does not exist"),
+    ("file.txt/x.png", "argument --out: '{out}': '{dir}' is not a directory"),
+])
+def test_an_out_that_cannot_be_written_as_asked_exits_2_naming_it(tmp_path, name, message, capsys):
+    """A JPEG is refused rather than written (help and behaviour agree: .exr or .png), and a
+    directory that is not there is named rather than created."""
+    (tmp_path / "file.txt").write_text("")
+    out = tmp_path / name
+    parser = argparse.ArgumentParser(prog="ig render")
+    cli_render.add_arguments(parser)
+    with pytest.raises(SystemExit) as exit_:
+        parser.parse_args(["--eye", "0", "0", "2", "--out", str(out)])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert f"ig render: error: {message.format(out=out, dir=out.parent)}" in err
+    assert not (tmp_path / "missing").exists() and not out.exists()
+
+
+def test_the_out_suffix_is_matched_whatever_its_case(tmp_path):
+    parser = argparse.ArgumentParser(prog="ig render")
+    cli_render.add_arguments(parser)
+    args = parser.parse_args(["--eye", "0", "0", "2", "--out", str(tmp_path / "X.PNG")])
+    assert args.out == tmp_path / "X.PNG"
+
