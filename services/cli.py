@@ -25,8 +25,9 @@ COMMANDS = {
                 "hops along the frame's way, and the FAA 14 CFR Part 60 transport-delay limits "
                 "(docs/latency.md)."),
     "render": ("channel_worker.cli_render", "render one frame of one channel to an image file",
-               "Render one frame of one channel: .exr holds linear RGB and Z (range, metres), .png holds "
-               "sRGB 8-bit."),
+               "Render one frame of one channel of a scene (by default the demo's world, the airfield on the "
+               "bundled terrain; --scene airfield for the flat airfield alone): .exr holds linear RGB and Z "
+               "(range, metres), .png holds sRGB 8-bit."),
     "host": ("host_sim.cli_host", "publish eyepoints frame-locked to the rig: the bundled flight, a flight model "
              "flown by CAN/serial controls, or a replayed flight log",
              "Serve HostService: publish frames at a fixed rate, or paced by the rig (--pace acks), waiting for "

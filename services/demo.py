@@ -36,6 +36,7 @@ from typing import IO
 
 import grpc
 
+from channel_worker.data import DEFAULT_SCENE, SCENES, resolve_scene, scene_names_help
 from ig.v1 import compositor_pb2, compositor_pb2_grpc
 from services.compositor.cli import every
 from services.compositor.timing import HOPS
@@ -115,8 +116,8 @@ def add_rig_options(parser: argparse.ArgumentParser, *, out: str) -> None:
                         help="render threads of each worker (default: the rig file's [render] threads, or "
                              "where that is 0, this machine's cores divided among the workers)")
     parser.add_argument("--scene", default=None,
-                        help="scene JSON (default: the bundled airfield on the bundled terrain, "
-                             "with haze and clouds)")
+                        help="a scene JSON file or a bundled scene's name: " + scene_names_help()
+                             + f" (default: the rig file's [scene] path, else {DEFAULT_SCENE})")
     parser.add_argument("--rig", default=None,
                         help="rig file (default: the bundled three-channel rig); its addresses are replaced "
                              "by free ports on 127.0.0.1")
@@ -338,15 +339,12 @@ def prepare_rig(command: str, args: argparse.Namespace) -> tuple[Rig, str] | int
     except ValueError as exc:
         error(command, exc)
         return EXIT_BAD_INPUT
-    # The scene: --scene, else the rig file's [scene] path, else the demo's terrain scene.
-    given, where = (args.scene, "--scene") if args.scene else (rig.scene, "[scene] path")
-    if given and not Path(given).is_file():
-        error(command, f"{where}: {given!r} is not a file")
-        return EXIT_BAD_INPUT
-    from channel_worker.pipeline.scene.load import SceneError, demo_scene_path, load_scene
+    # The scene: --scene (a bundled scene's name or a file), else the rig file's [scene] path,
+    # else the demo's terrain scene.
+    from channel_worker.pipeline.scene.load import SceneError, load_scene
 
-    scene_path = given or str(demo_scene_path())
-    if not given:
+    if args.scene in SCENES or not (args.scene or rig.scene):
+        scene_path = str(resolve_scene(args.scene))
         # Build the bundled terrain once here (a few seconds on first use) instead of in every
         # worker at once. A scene of the user's is checked by the workers, whose errors end
         # the run with their message.
@@ -355,6 +353,12 @@ def prepare_rig(command: str, args: argparse.Namespace) -> tuple[Rig, str] | int
         except SceneError as exc:
             error(command, exc)
             return EXIT_FAILED
+    else:
+        scene_path, where = (args.scene, "--scene") if args.scene else (rig.scene, "[scene] path")
+        if not Path(scene_path).is_file():
+            what = f"neither a bundled scene ({', '.join(SCENES)}) nor a file" if args.scene else "not a file"
+            error(command, f"{where}: {scene_path!r} is {what}")
+            return EXIT_BAD_INPUT
     if args.width or args.height:
         first = rig.channels[0].spec
         rig = rig.with_size(args.width or first.width, args.height or first.height)

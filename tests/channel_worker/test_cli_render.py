@@ -156,3 +156,33 @@ def test_the_out_suffix_is_matched_whatever_its_case(tmp_path):
     args = parser.parse_args(["--eye", "0", "0", "2", "--out", str(tmp_path / "X.PNG")])
     assert args.out == tmp_path / "X.PNG"
 
+
+@pytest.mark.parametrize("scene_args,expected", [
+    ([], "airfield_terrain.json"),  # no scene: the demo's world
+    (["--scene", "airfield"], "airfield.json"),  # the flat airfield, by name
+    (["airfield"], "airfield.json"),  # the name as the positional SCENE
+    (["--scene", "airfield-terrain"], "airfield_terrain.json"),
+])
+def test_the_scene_is_the_demos_world_unless_named(tmp_path, scene_args, expected):
+    from channel_worker.data import SCENES
+    from channel_worker.pipeline.scene.load import bundled_scene_path, demo_scene_path
+
+    # The table's files are the loader's own bundled scenes.
+    assert {f for f, _ in SCENES.values()} == {bundled_scene_path().name, demo_scene_path().name}
+    png = tmp_path / "s.png"
+    assert run([*scene_args, "--eye", "0", "-1500", "300", "--width", "16", "--height", "12", "--samples", "1",
+                "--out", str(png)]) == 0
+    _, attrs = read_image(png)
+    assert attrs["scene"] == str(demo_scene_path().with_name(expected))
+
+
+def test_a_scene_given_twice_or_unknown_exits_2_naming_it(tmp_path, capsys):
+    out = str(tmp_path / "x.png")
+    assert run(["airfield", "--scene", "airfield-terrain", "--eye", "0", "0", "2", "--out", out]) == 2
+    assert ("ig render: error: the scene given twice: SCENE 'airfield' and --scene 'airfield-terrain'; give one"
+            in capsys.readouterr().err)
+    assert run(["--scene", "airfeild", "--eye", "0", "0", "2", "--out", out]) == 2
+    assert ("ig render: error: --scene: 'airfeild' is neither a bundled scene (airfield-terrain, airfield) nor a "
+            "file") in capsys.readouterr().err
+    assert run([str(tmp_path / "none.json"), "--eye", "0", "0", "2", "--out", out]) == 2
+    assert f"ig render: error: SCENE: '{tmp_path / 'none.json'}' is neither" in capsys.readouterr().err

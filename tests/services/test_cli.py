@@ -54,3 +54,16 @@ def test_demo_with_an_unknown_sample_pattern_exits_2_before_starting_anything(tm
     assert main(["demo", "--samples", "7", "--out", str(tmp_path / "demo")]) == 2
     assert "samples: 7 has no pattern" in capsys.readouterr().err
     assert not (tmp_path / "demo").exists()
+
+
+def test_demo_takes_a_bundled_scene_by_name(tmp_path, capsys):
+    from channel_worker.pipeline.scene.load import bundled_scene_path
+    from services.demo import prepare_rig
+
+    args = build_parser("demo").parse_args(["demo", "--scene", "airfield"])
+    rig, scene = prepare_rig("demo", args)
+    assert scene == str(bundled_scene_path())
+    assert main(["demo", "--scene", "airfeild", "--out", str(tmp_path / "demo")]) == 2
+    assert ("ig demo: error: --scene: 'airfeild' is neither a bundled scene (airfield-terrain, airfield) nor a file"
+            in capsys.readouterr().err)
+    assert not (tmp_path / "demo").exists()
