@@ -46,3 +46,11 @@ def test_bad_options_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["host", *argv])
     assert exc.value.code == 2
+
+
+def test_a_binary_igc_log_is_named_as_no_text_log(tmp_path, capsys):
+    garbage = tmp_path / "garbage.igc"
+    garbage.write_bytes(bytes(range(256)) * 20)
+    assert main(["host", "--replay", str(garbage)]) == 2
+    err = capsys.readouterr().err
+    assert "ig host: error: garbage.igc: not a text IGC log (" in err and "usable record" not in err
