@@ -30,7 +30,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO
 
@@ -456,10 +456,95 @@ def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
     return rate, None
 
 
+def process_start_time() -> float:
+    """Wall-clock time (UNIX seconds) at which this process started: from /proc on Linux, so
+    that the interpreter's start and the imports count; elsewhere the time of this call."""
+    try:
+        # Field 22 of /proc/self/stat, starttime in clock ticks after boot; the fields after
+        # the command name (which may hold spaces, in parentheses) start at field 3.
+        ticks = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        uptime_s = float(Path("/proc/uptime").read_text().split()[0])
+        return time.time() - (uptime_s - ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return time.time()
+
+
+@dataclass
+class Timeline:
+    """Where a demo's wall-clock time went before its flight.
+
+    Attributes:
+        started: UNIX time the `ig demo` process started.
+        compile_s: seconds of `ig compile`.
+        calibration_s: seconds from the workers' start to the end of the calibration run (its
+            first frame waits for the workers to load); 0 with a fixed --rate.
+    """
+
+    started: float
+    compile_s: float = 0.0
+    calibration_s: float = 0.0
+
+
+def demo_times(timeline: Timeline, doc: dict, *, ended: float, simulated_s: float) -> dict:
+    """The demo's own numbers for its report and closing lines: the time from the program's
+    start to the flight's first stitched frame, and the flight apart from compile and
+    calibration, from the compositor's first and last composite (report.json).
+
+    Args:
+        timeline: the demo's start (UNIX seconds) and the seconds its compile and calibration took.
+        doc: the compositor's report of the flight (first_composite_time, last_composite_time,
+            frames_complete).
+        ended: UNIX time the demo ended (every process stopped).
+        simulated_s: simulated seconds the host flew.
+
+    Returns:
+        first_frame_s (None without a composite), total_s, compile_s, calibration_s,
+        flight_wall_s and flight_rate_hz (the flight's composites over its wall-clock time,
+        None with fewer than two), flight_frames, flight_simulated_s.
+    """
+    first, last = doc.get("first_composite_time"), doc.get("last_composite_time")
+    frames = int(doc.get("frames_complete") or 0)
+    flight_s = last - first if first is not None and last is not None else None
+    return {
+        "first_frame_s": round(first - timeline.started, 3) if first is not None else None,
+        "total_s": round(ended - timeline.started, 3),
+        "compile_s": round(timeline.compile_s, 3),
+        "calibration_s": round(timeline.calibration_s, 3),
+        "flight_wall_s": round(flight_s, 3) if flight_s is not None else None,
+        "flight_frames": frames,
+        "flight_rate_hz": round((frames - 1) / flight_s, 3) if flight_s and frames > 1 else None,
+        "flight_simulated_s": simulated_s,
+    }
+
+
+def format_times(times: dict) -> str:
+    """The demo's closing lines on its own time (demo_times)."""
+    first = times["first_frame_s"]
+    lines = [f"first stitched frame {first:.1f} s after ig demo started (before the flight: kernels "
+             f"{times['compile_s']:.1f} s, the workers' start and the calibration {times['calibration_s']:.1f} s)"
+             if first is not None else "no stitched frame"]
+    if times["flight_wall_s"] is not None:
+        rate = times["flight_rate_hz"]
+        lines.append(f"the flight: {times['flight_frames']} stitched frames in {times['flight_wall_s']:.1f} s "
+                     f"wall-clock" + (f" ({rate:.2f} Hz)" if rate else "") +
+                     f" for {times['flight_simulated_s']:g} simulated seconds")
+    lines.append(f"{times['total_s']:.0f} s in all")
+    return "\n".join(lines)
+
+
+def _write_demo_times(report_path: Path, times: dict) -> None:
+    """Add the demo's numbers to the run's report.json, under "demo" (written whole, then
+    renamed: a reader never sees half a file)."""
+    doc = json.loads(report_path.read_text())
+    doc["demo"] = times
+    tmp = report_path.with_name(report_path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=2) + "\n")
+    os.replace(tmp, report_path)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
-    if args.duration is None:
-        args.duration = FLIGHT_S if args.fdm is None else TAKEOFF_S
+    timeline = Timeline(started=process_start_time())
     if args.fdm is not None:
         from host_sim.fdm import parse_fdm
         from host_sim.fdm.jsbsim_model import import_jsbsim
@@ -473,6 +558,11 @@ def run(args: argparse.Namespace) -> int:
     if isinstance(prepared, int):
         return prepared
     rig, scene_path = prepared
+    source: list[str] = ["--fdm", args.fdm] if args.fdm is not None else []
+    flown = "the scripted take-off" if args.fdm is not None else "the bundled flight"
+    natural_s = FLIGHT_S if args.fdm is None else TAKEOFF_S
+    if args.duration is None:
+        args.duration = natural_s
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -488,15 +578,16 @@ def run(args: argparse.Namespace) -> int:
     print(f"ig demo: {len(rig.channels)} channels ({', '.join(rig.channel_names)}), "
           f"{rig.channels[0].spec.width} x {rig.channels[0].spec.height} each, {rig.render.threads} render "
           f"thread(s) per worker, {args.duration:g} simulated "
-          f"seconds; logs in {out / 'logs'}", flush=True)
+          f"seconds of {flown}; logs in {out / 'logs'}", flush=True)
     scene = ["--scene", scene_path]
-    started = time.monotonic()
     failure, rate = None, 0.0
     with stop_flag() as stop:
         try:
+            t0 = time.time()
             failure = compile_kernels(procs, "demo", rig_path, scene, stop)
+            timeline.compile_s = time.time() - t0
             if not failure and not stop.why:
-                failure, rate = _run_rig(procs, rig, rig_path, out, args, scene, stop)
+                failure, rate = _run_rig(procs, rig, rig_path, out, args, scene, source, stop, timeline)
             if stop.why:
                 print(f"\nig demo: {stop.why}; stopping every process", file=sys.stderr)
                 procs.stop_all()
@@ -516,8 +607,13 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_FAILED
     doc = json.loads(report_path.read_text())
     frames_dir = Path(doc.get("frames_dir") or out / "latest" / "frames")
+    times = demo_times(timeline, doc, ended=time.time(), simulated_s=args.duration)
+    try:
+        _write_demo_times(report_path, times)
+    except OSError as exc:
+        error("demo", f"cannot add the demo's times to {report_path}: {exc}")
     print(format_report(doc))
-    print(f"\n{doc['frames_complete']} stitched frames in {time.monotonic() - started:.0f} s wall-clock")
+    print("\n" + format_times(times))
     achieved = doc.get("composite_rate_hz")
     if achieved and args.rate is None:
         print(f"composites came at {achieved:.2f} Hz (median), the host paced by the rig: the flight ran in "
@@ -540,14 +636,19 @@ def record_every_for(rate_hz: float) -> int:
 
 
 def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argparse.Namespace,
-             scene: list[str], stop: StopFlag) -> tuple[Failure | None, float]:
+             scene: list[str], source: list[str], stop: StopFlag, timeline: Timeline) -> tuple[Failure | None, float]:
     """Start a worker per channel, measure the rate with --rate auto, then the compositor and the
-    host; watch until the run is over. Returns the first failure, and the rate, Hz: the fixed
-    one, or with --rate auto the one measured (the host is then paced by the rig)."""
+    host (flying source: its `ig host` options, none for the bundled flight); watch until the run
+    is over. Returns the first failure, and the rate, Hz: the fixed
+    one, or with --rate auto the one measured (the host is then paced by the rig). The
+    seconds from the workers' start to the end of the calibration go into timeline."""
+    t0 = time.time()
     start_workers(procs, rig, rig_path, scene)
     rate = args.rate
     if rate is None:
         rate, failure = calibrate_rate(procs, "demo", rig_path, out / "calibration", stop)
+        # From the workers' start: the calibration's first frame waits for them to load.
+        timeline.calibration_s = time.time() - t0
         if failure or stop.why:
             return failure, rate
         rate = round(rate, 2)
@@ -560,9 +661,8 @@ def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argpar
     compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
                                             "--record-every", str(record_every), "--exr-every", str(args.exr_every),
                                             "--once"])
-    fdm = ["--fdm", args.fdm] if args.fdm is not None else []
     procs.start("host", ["host", "--rig", str(rig_path), *host_pace_args(args.rate),
-                         "--duration", str(args.duration), *fdm])
+                         "--duration", str(args.duration), *source])
     return _watch(procs, compositor, rig.compositor_address, expected, stop, estimated=args.rate is None), rate
 
 

@@ -61,7 +61,7 @@ def test_demo_takes_a_bundled_scene_by_name(tmp_path, capsys):
     from services.demo import prepare_rig
 
     args = build_parser("demo").parse_args(["demo", "--scene", "airfield"])
-    rig, scene = prepare_rig("demo", args)
+    _, scene = prepare_rig("demo", args)
     assert scene == str(bundled_scene_path())
     assert main(["demo", "--scene", "airfeild", "--out", str(tmp_path / "demo")]) == 2
     assert ("ig demo: error: --scene: 'airfeild' is neither a bundled scene (airfield-terrain, airfield) nor a file"
