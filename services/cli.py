@@ -16,8 +16,9 @@ import sys
 COMMANDS = {
     "demo": ("services.demo", "run host, one worker per channel and the compositor on this machine",
              "Start host, one worker per rig channel and the compositor as separate processes on this "
-             "machine, fly the bundled flight on the bundled scene, show progress, print the report. "
-             "Every process started is stopped on exit, on error and on Ctrl-C."),
+             "machine, fly the bundled flight (or a flight log: --replay) on the bundled scene, show progress, "
+             "print the report and the time to the first stitched frame. Every process started is stopped on "
+             "exit, on error and on Ctrl-C."),
     "latency": ("services.latency", "measure the rig's transport delay: pitch steps on a CAN bus to the composite",
                 "Start the rig as ig demo does, with the host flown by CANaerospace controls on an slcan CAN "
                 "adapter played by this command; step the pitch control, find the first composite whose "

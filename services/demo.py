@@ -1,4 +1,6 @@
-"""`ig demo`: the whole rig as separate processes on this machine, on the bundled flight.
+"""`ig demo`: the whole rig as separate processes on this machine, on the bundled flight, a
+scripted take-off (`--fdm`) or a flight log (`--replay`: a bundled sample flight by name, or a
+log file, placed around the rig's database origin).
 
 The host is paced by the rig (`--rate auto`, the default): it publishes each frame as soon as
 every channel has acknowledged the previous one (at most AUTO_RATE_MAX_HZ), samples the controls
@@ -37,6 +39,7 @@ from typing import IO
 import grpc
 
 from channel_worker.data import DEFAULT_SCENE, SCENES, resolve_scene, scene_names_help
+from host_sim.replay import samples as sample_flights
 from ig.v1 import compositor_pb2, compositor_pb2_grpc
 from services.compositor.cli import every
 from services.compositor.timing import HOPS
@@ -134,11 +137,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "slows the simulation")
     parser.add_argument("--duration", type=non_negative, default=None,
                         help=f"simulated seconds to fly (default {FLIGHT_S:g} of the bundled flight; "
-                             f"{TAKEOFF_S:g} with --fdm: the scripted take-off lifts off at about 27 s, then climbs)")
+                             f"{TAKEOFF_S:g} with --fdm: the scripted take-off lifts off at about 27 s, then climbs; "
+                             "the whole log with --replay)")
     parser.add_argument("--fdm", default=None, metavar="MODEL",
                         help="instead of the bundled flight, a scripted take-off from the runway flown by this "
                              "flight model: jsbsim (JSBSim's c172x), jsbsim:AIRCRAFT or point-mass "
                              "(docs/host-flight-model.md; JSBSim needs pip install 'ig-rig[jsbsim]')")
+    parser.add_argument("--replay", default=None, metavar="NAME|FILE",
+                        help="instead of the bundled flight, fly a flight log: a bundled sample, "
+                             + "; ".join(f"{name} ({what})" for name, (_, what) in sample_flights.SAMPLES.items())
+                             + "; or a log file (.csv, .igc, .fdr, .ulg; docs/replay-formats.md), its geodetic "
+                               "positions placed around the rig's database origin ([cigi] origin: the bundled "
+                               "airfield's). --duration defaults to the whole log")
     parser.add_argument("--record-every", type=every_or_auto, default=None,
                         help=f"write the stitched frame as PNG every N frames, or auto (default): about "
                              f"{_RECORDED_PER_S:g} per simulated second. Recording never holds the rig up: a frame "
@@ -542,9 +552,38 @@ def _write_demo_times(report_path: Path, times: dict) -> None:
     os.replace(tmp, report_path)
 
 
+def replay_host_args(text: str, rig: Rig) -> tuple[list[str], float]:
+    """`ig host` options that fly the log of `ig demo --replay` over the rig's world, and the
+    log's length, simulated seconds.
+
+    Args:
+        text: a bundled sample's name (host_sim.replay.samples) or a log file.
+        rig: the rig; its database origin ([cigi] origin) is the replay's geodetic origin, so
+            that the bundled samples fly over the bundled airfield, and a log recorded there does.
+
+    Raises:
+        ValueError: neither a sample's name nor a file, or a log the replay refuses (the message
+            names --replay, the file and the problem).
+    """
+    from host_sim.replay import load_track
+
+    path = sample_flights.resolve_log(text, setting="--replay")
+    origin = rig.cigi.origin
+    try:
+        # Read here, before anything starts: a log the host would refuse is said in one line.
+        track, _ = load_track(path, origin=origin)
+    except ValueError as exc:
+        raise ValueError(f"--replay: {exc}") from exc
+    return (["--replay", str(path), "--replay-origin", ",".join(repr(float(v)) for v in origin)],
+            track.duration_s)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
     timeline = Timeline(started=process_start_time())
+    if args.replay is not None and args.fdm is not None:
+        error("demo", f"--replay {args.replay!r} and --fdm {args.fdm!r} are two sources of the flight; give one")
+        return EXIT_BAD_INPUT
     if args.fdm is not None:
         from host_sim.fdm import parse_fdm
         from host_sim.fdm.jsbsim_model import import_jsbsim
@@ -561,6 +600,13 @@ def run(args: argparse.Namespace) -> int:
     source: list[str] = ["--fdm", args.fdm] if args.fdm is not None else []
     flown = "the scripted take-off" if args.fdm is not None else "the bundled flight"
     natural_s = FLIGHT_S if args.fdm is None else TAKEOFF_S
+    if args.replay is not None:
+        try:
+            source, natural_s = replay_host_args(args.replay, rig)
+        except ValueError as exc:
+            error("demo", exc)
+            return EXIT_BAD_INPUT
+        flown = Path(source[1]).name
     if args.duration is None:
         args.duration = natural_s
     out = Path(args.out)
