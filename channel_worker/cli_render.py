@@ -5,17 +5,44 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 
 from services.rig.cli_common import EXIT_BAD_INPUT, EXIT_FAILED, field_of_view, pixels
 from services.rig.frame import ChannelSpec, Eyepoint
 from services.rig.options import add_render_arguments, from_arguments
 from services.rig.report import FrameReport
 
+from .data import DEFAULT_SCENE, resolve_scene, scene_names_help
+
+#: The image formats `ig render` writes, by suffix, and what each holds. A JPEG (which
+#: OpenImageIO would write as readily) is refused: its lossy blocks smear exactly the edge
+#: anti-aliasing and texture detail a frame grab of an IG is taken to inspect, and it cannot
+#: hold the range channel.
+FORMATS = {".exr": "linear float RGB + Z range in metres", ".png": "sRGB 8-bit"}
+
+
+def output_image(text: str) -> Path:
+    """argparse type of --out: a .exr or .png file in a directory that exists (a mistyped
+    directory is an error, not a new folder somewhere)."""
+    path = Path(text)
+    if path.suffix.lower() not in FORMATS:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not a {' or '.join(FORMATS)} file ({'; '.join(f'{k}: {v}' for k, v in FORMATS.items())})")
+    parent = path.parent
+    if not parent.exists():
+        raise argparse.ArgumentTypeError(f"{text!r}: directory {str(parent)!r} does not exist")
+    if not parent.is_dir():
+        raise argparse.ArgumentTypeError(f"{text!r}: {str(parent)!r} is not a directory")
+    return path
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig render`."""
-    parser.add_argument("scene", nargs="?", default=None,
-                        help="scene JSON file (docs/scene-format.md); default: the bundled airfield")
+    scene_help = (f"a scene JSON file (docs/scene-format.md) or a bundled scene's name: {scene_names_help()}; "
+                  f"default: {DEFAULT_SCENE}")
+    parser.add_argument("scene", nargs="?", default=None, metavar="SCENE", help=scene_help)
+    parser.add_argument("--scene", dest="scene_option", default=None, metavar="SCENE",
+                        help="the scene, as the SCENE argument takes it (give one or the other)")
     parser.add_argument("--eye", nargs=3, type=float, metavar=("X", "Y", "Z"), required=True,
                         help="eyepoint, world metres (x east, y north, z up)")
     parser.add_argument("--hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
@@ -29,8 +56,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--channel-hpr", nargs=3, type=float, metavar=("H", "P", "R"), default=(0.0, 0.0, 0.0),
                         help="channel yaw, pitch, roll offset from the aircraft nose, degrees")
     add_render_arguments(parser, renderer=True, with_range=True)
-    parser.add_argument("--out", required=True,
-                        help="output image: .exr (linear float RGB + Z range in metres) or .png (sRGB 8-bit)")
+    parser.add_argument("--out", required=True, type=output_image,
+                        help="output image in an existing directory: "
+                             + " or ".join(f"{k} ({v})" for k, v in FORMATS.items()))
     parser.add_argument("--times", action="store_true", help="print the time of each pipeline stage")
 
 
@@ -41,6 +69,10 @@ def run(args: argparse.Namespace) -> int:
     from services.rig.image_io import write_image
     from services.rig.threads import size_thread_pool
 
+    if args.scene is not None and args.scene_option is not None:
+        print(f"ig render: error: the scene given twice: SCENE {args.scene!r} and --scene {args.scene_option!r}; "
+              "give one", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         options = from_arguments(args)
         # Before the pipeline is imported: numba sizes its pool once (services/rig/threads.py).
@@ -49,10 +81,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"ig render: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     from .pipeline.render import render_frame
-    from .pipeline.scene.load import SceneError, bundled_scene_path, load_scene
+    from .pipeline.scene.load import SceneError, load_scene
 
     try:
-        database = load_scene(args.scene or bundled_scene_path())
+        given = ("SCENE", args.scene) if args.scene is not None else ("--scene", args.scene_option)
+        database = load_scene(resolve_scene(given[1], setting=given[0]))
         channel = ChannelSpec.symmetric("render", args.width, args.height, args.fov_h, args.fov_v,
                                         yaw_deg=args.channel_hpr[0], pitch_deg=args.channel_hpr[1],
                                         roll_deg=args.channel_hpr[2])

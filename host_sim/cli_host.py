@@ -14,8 +14,10 @@ The eyepoints come from one of:
 from __future__ import annotations
 
 import argparse
+import errno
 import logging
 import math
+import socket
 import threading
 
 from services.rig.cli_common import (
@@ -116,7 +118,8 @@ def _fdm_help() -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Serve HostService until the run ends or SIGTERM; 0 ok, 1 cannot listen, 2 bad input."""
+    """Serve HostService until the run ends or SIGTERM; 0 ok, 1 cannot listen (a port taken), 2 bad
+    input (a --cigi or --simhost address that does not resolve or is not this machine's)."""
     from host_sim.publisher import FramePublisher
     from host_sim.server import serve
     from services.rig.cli_common import security_of
@@ -159,7 +162,16 @@ def run(args: argparse.Namespace) -> int:
         error("host", exc)
         return EXIT_BAD_INPUT
     except OSError as exc:
-        error("host", f"{'--cigi' if args.cigi is not None else '--simhost'}: cannot listen: {exc}")
+        flag, url = (("--cigi", args.cigi or rig.cigi.listen) if args.cigi is not None else
+                     ("--simhost", args.simhost or rig.simhost.url))
+        if isinstance(exc, socket.gaierror) or exc.errno == errno.EADDRNOTAVAIL:
+            # A name that does not resolve, or an address that is not this machine's, is a
+            # mistyped URL (bad input); a port already taken is the machine's state (failed).
+            error("host", f"{flag}: {url!r}: cannot listen there: "
+                          f"{'no such host' if isinstance(exc, socket.gaierror) else 'not an address of this machine'}"
+                          f" ({exc.strerror or exc})")
+            return EXIT_BAD_INPUT
+        error("host", f"{flag}: cannot listen: {exc}")
         return EXIT_FAILED
     duration = args.duration if args.duration is not None else (natural_s if math.isfinite(natural_s)
                                                                   else UNTIL_STOPPED_S)

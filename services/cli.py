@@ -16,8 +16,9 @@ import sys
 COMMANDS = {
     "demo": ("services.demo", "run host, one worker per channel and the compositor on this machine",
              "Start host, one worker per rig channel and the compositor as separate processes on this "
-             "machine, fly the bundled flight on the bundled scene, show progress, print the report. "
-             "Every process started is stopped on exit, on error and on Ctrl-C."),
+             "machine, fly the bundled flight (or a flight log: --replay) on the bundled scene, show progress, "
+             "print the report and the time to the first stitched frame. Every process started is stopped on "
+             "exit, on error and on Ctrl-C."),
     "latency": ("services.latency", "measure the rig's transport delay: pitch steps on a CAN bus to the composite",
                 "Start the rig as ig demo does, with the host flown by CANaerospace controls on an slcan CAN "
                 "adapter played by this command; step the pitch control, find the first composite whose "
@@ -25,8 +26,9 @@ COMMANDS = {
                 "hops along the frame's way, and the FAA 14 CFR Part 60 transport-delay limits "
                 "(docs/latency.md)."),
     "render": ("channel_worker.cli_render", "render one frame of one channel to an image file",
-               "Render one frame of one channel: .exr holds linear RGB and Z (range, metres), .png holds "
-               "sRGB 8-bit."),
+               "Render one frame of one channel of a scene (by default the demo's world, the airfield on the "
+               "bundled terrain; --scene airfield for the flat airfield alone): .exr holds linear RGB and Z "
+               "(range, metres), .png holds sRGB 8-bit."),
     "host": ("host_sim.cli_host", "publish eyepoints frame-locked to the rig: the bundled flight, a flight model "
              "flown by CAN/serial controls, or a replayed flight log",
              "Serve HostService: publish frames at a fixed rate, or paced by the rig (--pace acks), waiting for "

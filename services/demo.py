@@ -1,4 +1,6 @@
-"""`ig demo`: the whole rig as separate processes on this machine, on the bundled flight.
+"""`ig demo`: the whole rig as separate processes on this machine, on the bundled flight, a
+scripted take-off (`--fdm`) or a flight log (`--replay`: a bundled sample flight by name, or a
+log file, placed around the rig's database origin).
 
 The host is paced by the rig (`--rate auto`, the default): it publishes each frame as soon as
 every channel has acknowledged the previous one (at most AUTO_RATE_MAX_HZ), samples the controls
@@ -30,12 +32,14 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO
 
 import grpc
 
+from channel_worker.data import DEFAULT_SCENE, SCENES, resolve_scene, scene_names_help
+from host_sim.replay import samples as sample_flights
 from ig.v1 import compositor_pb2, compositor_pb2_grpc
 from services.compositor.cli import every
 from services.compositor.timing import HOPS
@@ -115,8 +119,8 @@ def add_rig_options(parser: argparse.ArgumentParser, *, out: str) -> None:
                         help="render threads of each worker (default: the rig file's [render] threads, or "
                              "where that is 0, this machine's cores divided among the workers)")
     parser.add_argument("--scene", default=None,
-                        help="scene JSON (default: the bundled airfield on the bundled terrain, "
-                             "with haze and clouds)")
+                        help="a scene JSON file or a bundled scene's name: " + scene_names_help()
+                             + f" (default: the rig file's [scene] path, else {DEFAULT_SCENE})")
     parser.add_argument("--rig", default=None,
                         help="rig file (default: the bundled three-channel rig); its addresses are replaced "
                              "by free ports on 127.0.0.1")
@@ -133,11 +137,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "slows the simulation")
     parser.add_argument("--duration", type=non_negative, default=None,
                         help=f"simulated seconds to fly (default {FLIGHT_S:g} of the bundled flight; "
-                             f"{TAKEOFF_S:g} with --fdm: the scripted take-off lifts off at about 27 s, then climbs)")
+                             f"{TAKEOFF_S:g} with --fdm: the scripted take-off lifts off at about 27 s, then climbs; "
+                             "the whole log with --replay)")
     parser.add_argument("--fdm", default=None, metavar="MODEL",
                         help="instead of the bundled flight, a scripted take-off from the runway flown by this "
                              "flight model: jsbsim (JSBSim's c172x), jsbsim:AIRCRAFT or point-mass "
                              "(docs/host-flight-model.md; JSBSim needs pip install 'ig-rig[jsbsim]')")
+    parser.add_argument("--replay", default=None, metavar="NAME|FILE",
+                        help="instead of the bundled flight, fly a flight log: a bundled sample, "
+                             + "; ".join(f"{name} ({what})" for name, (_, what) in sample_flights.SAMPLES.items())
+                             + "; or a log file (.csv, .igc, .fdr, .ulg; docs/replay-formats.md), its geodetic "
+                               "positions placed around the rig's database origin ([cigi] origin: the bundled "
+                               "airfield's). --duration defaults to the whole log")
     parser.add_argument("--record-every", type=every_or_auto, default=None,
                         help=f"write the stitched frame as PNG every N frames, or auto (default): about "
                              f"{_RECORDED_PER_S:g} per simulated second. Recording never holds the rig up: a frame "
@@ -338,15 +349,12 @@ def prepare_rig(command: str, args: argparse.Namespace) -> tuple[Rig, str] | int
     except ValueError as exc:
         error(command, exc)
         return EXIT_BAD_INPUT
-    # The scene: --scene, else the rig file's [scene] path, else the demo's terrain scene.
-    given, where = (args.scene, "--scene") if args.scene else (rig.scene, "[scene] path")
-    if given and not Path(given).is_file():
-        error(command, f"{where}: {given!r} is not a file")
-        return EXIT_BAD_INPUT
-    from channel_worker.pipeline.scene.load import SceneError, demo_scene_path, load_scene
+    # The scene: --scene (a bundled scene's name or a file), else the rig file's [scene] path,
+    # else the demo's terrain scene.
+    from channel_worker.pipeline.scene.load import SceneError, load_scene
 
-    scene_path = given or str(demo_scene_path())
-    if not given:
+    if args.scene in SCENES or not (args.scene or rig.scene):
+        scene_path = str(resolve_scene(args.scene))
         # Build the bundled terrain once here (a few seconds on first use) instead of in every
         # worker at once. A scene of the user's is checked by the workers, whose errors end
         # the run with their message.
@@ -355,6 +363,12 @@ def prepare_rig(command: str, args: argparse.Namespace) -> tuple[Rig, str] | int
         except SceneError as exc:
             error(command, exc)
             return EXIT_FAILED
+    else:
+        scene_path, where = (args.scene, "--scene") if args.scene else (rig.scene, "[scene] path")
+        if not Path(scene_path).is_file():
+            what = f"neither a bundled scene ({', '.join(SCENES)}) nor a file" if args.scene else "not a file"
+            error(command, f"{where}: {scene_path!r} is {what}")
+            return EXIT_BAD_INPUT
     if args.width or args.height:
         first = rig.channels[0].spec
         rig = rig.with_size(args.width or first.width, args.height or first.height)
@@ -452,10 +466,124 @@ def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
     return rate, None
 
 
+def process_start_time() -> float:
+    """Wall-clock time (UNIX seconds) at which this process started: from /proc on Linux, so
+    that the interpreter's start and the imports count; elsewhere the time of this call."""
+    try:
+        # Field 22 of /proc/self/stat, starttime in clock ticks after boot; the fields after
+        # the command name (which may hold spaces, in parentheses) start at field 3.
+        ticks = int(Path("/proc/self/stat").read_text().rsplit(")", 1)[1].split()[19])
+        uptime_s = float(Path("/proc/uptime").read_text().split()[0])
+        return time.time() - (uptime_s - ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return time.time()
+
+
+@dataclass
+class Timeline:
+    """Where a demo's wall-clock time went before its flight.
+
+    Attributes:
+        started: UNIX time the `ig demo` process started.
+        compile_s: seconds of `ig compile`.
+        calibration_s: seconds from the workers' start to the end of the calibration run (its
+            first frame waits for the workers to load); 0 with a fixed --rate.
+    """
+
+    started: float
+    compile_s: float = 0.0
+    calibration_s: float = 0.0
+
+
+def demo_times(timeline: Timeline, doc: dict, *, ended: float, simulated_s: float) -> dict:
+    """The demo's own numbers for its report and closing lines: the time from the program's
+    start to the flight's first stitched frame, and the flight apart from compile and
+    calibration, from the compositor's first and last composite (report.json).
+
+    Args:
+        timeline: the demo's start (UNIX seconds) and the seconds its compile and calibration took.
+        doc: the compositor's report of the flight (first_composite_time, last_composite_time,
+            frames_complete).
+        ended: UNIX time the demo ended (every process stopped).
+        simulated_s: simulated seconds the host flew.
+
+    Returns:
+        first_frame_s (None without a composite), total_s, compile_s, calibration_s,
+        flight_wall_s and flight_rate_hz (the flight's composites over its wall-clock time,
+        None with fewer than two), flight_frames, flight_simulated_s.
+    """
+    first, last = doc.get("first_composite_time"), doc.get("last_composite_time")
+    frames = int(doc.get("frames_complete") or 0)
+    flight_s = last - first if first is not None and last is not None else None
+    return {
+        "first_frame_s": round(first - timeline.started, 3) if first is not None else None,
+        "total_s": round(ended - timeline.started, 3),
+        "compile_s": round(timeline.compile_s, 3),
+        "calibration_s": round(timeline.calibration_s, 3),
+        "flight_wall_s": round(flight_s, 3) if flight_s is not None else None,
+        "flight_frames": frames,
+        "flight_rate_hz": round((frames - 1) / flight_s, 3) if flight_s and frames > 1 else None,
+        "flight_simulated_s": simulated_s,
+    }
+
+
+def format_times(times: dict) -> str:
+    """The demo's closing lines on its own time (demo_times)."""
+    first = times["first_frame_s"]
+    lines = [f"first stitched frame {first:.1f} s after ig demo started (before the flight: kernels "
+             f"{times['compile_s']:.1f} s, the workers' start and the calibration {times['calibration_s']:.1f} s)"
+             if first is not None else "no stitched frame"]
+    if times["flight_wall_s"] is not None:
+        rate = times["flight_rate_hz"]
+        lines.append(f"the flight: {times['flight_frames']} stitched frames in {times['flight_wall_s']:.1f} s "
+                     f"wall-clock" + (f" ({rate:.2f} Hz)" if rate else "") +
+                     f" for {times['flight_simulated_s']:g} simulated seconds")
+    lines.append(f"{times['total_s']:.0f} s in all")
+    return "\n".join(lines)
+
+
+def _write_demo_times(report_path: Path, times: dict) -> None:
+    """Add the demo's numbers to the run's report.json, under "demo" (written whole, then
+    renamed: a reader never sees half a file)."""
+    doc = json.loads(report_path.read_text())
+    doc["demo"] = times
+    tmp = report_path.with_name(report_path.name + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=2) + "\n")
+    os.replace(tmp, report_path)
+
+
+def replay_host_args(text: str, rig: Rig) -> tuple[list[str], float]:
+    """`ig host` options that fly the log of `ig demo --replay` over the rig's world, and the
+    log's length, simulated seconds.
+
+    Args:
+        text: a bundled sample's name (host_sim.replay.samples) or a log file.
+        rig: the rig; its database origin ([cigi] origin) is the replay's geodetic origin, so
+            that the bundled samples fly over the bundled airfield, and a log recorded there does.
+
+    Raises:
+        ValueError: neither a sample's name nor a file, or a log the replay refuses (the message
+            names --replay, the file and the problem).
+    """
+    from host_sim.replay import load_track
+
+    path = sample_flights.resolve_log(text, setting="--replay")
+    origin = rig.cigi.origin
+    try:
+        # Read here, before anything starts: a log the host would refuse is said in one line.
+        track, _ = load_track(path, origin=origin)
+    except ValueError as exc:
+        raise ValueError(f"--replay: {exc}") from exc
+    return (["--replay", str(path), "--replay-origin", ",".join(repr(float(v)) for v in origin)],
+            track.duration_s)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the rig; 0 when every frame was complete, 1 otherwise, 2 on bad input, 130 on Ctrl-C."""
-    if args.duration is None:
-        args.duration = FLIGHT_S if args.fdm is None else TAKEOFF_S
+    timeline = Timeline(started=process_start_time())
+    if args.replay is not None and args.fdm is not None:
+        error("demo", f"--replay {args.replay!r} and --fdm {args.fdm!r} are two sources of the flight; give one")
+        return EXIT_BAD_INPUT
     if args.fdm is not None:
         from host_sim.fdm import parse_fdm
         from host_sim.fdm.jsbsim_model import import_jsbsim
@@ -469,6 +597,18 @@ def run(args: argparse.Namespace) -> int:
     if isinstance(prepared, int):
         return prepared
     rig, scene_path = prepared
+    source: list[str] = ["--fdm", args.fdm] if args.fdm is not None else []
+    flown = "the scripted take-off" if args.fdm is not None else "the bundled flight"
+    natural_s = FLIGHT_S if args.fdm is None else TAKEOFF_S
+    if args.replay is not None:
+        try:
+            source, natural_s = replay_host_args(args.replay, rig)
+        except ValueError as exc:
+            error("demo", exc)
+            return EXIT_BAD_INPUT
+        flown = Path(source[1]).name
+    if args.duration is None:
+        args.duration = natural_s
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -484,15 +624,16 @@ def run(args: argparse.Namespace) -> int:
     print(f"ig demo: {len(rig.channels)} channels ({', '.join(rig.channel_names)}), "
           f"{rig.channels[0].spec.width} x {rig.channels[0].spec.height} each, {rig.render.threads} render "
           f"thread(s) per worker, {args.duration:g} simulated "
-          f"seconds; logs in {out / 'logs'}", flush=True)
+          f"seconds of {flown}; logs in {out / 'logs'}", flush=True)
     scene = ["--scene", scene_path]
-    started = time.monotonic()
     failure, rate = None, 0.0
     with stop_flag() as stop:
         try:
+            t0 = time.time()
             failure = compile_kernels(procs, "demo", rig_path, scene, stop)
+            timeline.compile_s = time.time() - t0
             if not failure and not stop.why:
-                failure, rate = _run_rig(procs, rig, rig_path, out, args, scene, stop)
+                failure, rate = _run_rig(procs, rig, rig_path, out, args, scene, source, stop, timeline)
             if stop.why:
                 print(f"\nig demo: {stop.why}; stopping every process", file=sys.stderr)
                 procs.stop_all()
@@ -512,8 +653,13 @@ def run(args: argparse.Namespace) -> int:
         return EXIT_FAILED
     doc = json.loads(report_path.read_text())
     frames_dir = Path(doc.get("frames_dir") or out / "latest" / "frames")
+    times = demo_times(timeline, doc, ended=time.time(), simulated_s=args.duration)
+    try:
+        _write_demo_times(report_path, times)
+    except OSError as exc:
+        error("demo", f"cannot add the demo's times to {report_path}: {exc}")
     print(format_report(doc))
-    print(f"\n{doc['frames_complete']} stitched frames in {time.monotonic() - started:.0f} s wall-clock")
+    print("\n" + format_times(times))
     achieved = doc.get("composite_rate_hz")
     if achieved and args.rate is None:
         print(f"composites came at {achieved:.2f} Hz (median), the host paced by the rig: the flight ran in "
@@ -536,14 +682,19 @@ def record_every_for(rate_hz: float) -> int:
 
 
 def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argparse.Namespace,
-             scene: list[str], stop: StopFlag) -> tuple[Failure | None, float]:
+             scene: list[str], source: list[str], stop: StopFlag, timeline: Timeline) -> tuple[Failure | None, float]:
     """Start a worker per channel, measure the rate with --rate auto, then the compositor and the
-    host; watch until the run is over. Returns the first failure, and the rate, Hz: the fixed
-    one, or with --rate auto the one measured (the host is then paced by the rig)."""
+    host (flying source: its `ig host` options, none for the bundled flight); watch until the run
+    is over. Returns the first failure, and the rate, Hz: the fixed
+    one, or with --rate auto the one measured (the host is then paced by the rig). The
+    seconds from the workers' start to the end of the calibration go into timeline."""
+    t0 = time.time()
     start_workers(procs, rig, rig_path, scene)
     rate = args.rate
     if rate is None:
         rate, failure = calibrate_rate(procs, "demo", rig_path, out / "calibration", stop)
+        # From the workers' start: the calibration's first frame waits for them to load.
+        timeline.calibration_s = time.time() - t0
         if failure or stop.why:
             return failure, rate
         rate = round(rate, 2)
@@ -556,9 +707,8 @@ def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argpar
     compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
                                             "--record-every", str(record_every), "--exr-every", str(args.exr_every),
                                             "--once"])
-    fdm = ["--fdm", args.fdm] if args.fdm is not None else []
     procs.start("host", ["host", "--rig", str(rig_path), *host_pace_args(args.rate),
-                         "--duration", str(args.duration), *fdm])
+                         "--duration", str(args.duration), *source])
     return _watch(procs, compositor, rig.compositor_address, expected, stop, estimated=args.rate is None), rate
 
 

@@ -23,6 +23,7 @@ import math
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from .text import head, refuse_binary
 from .track import ATTITUDE, RawLog, out_of_range
 
 GEODETIC = ("lat_deg", "lon_deg", "alt_m")
@@ -40,13 +41,6 @@ def _rows(f: Iterable[str]) -> Iterator[tuple[int, list[str]]]:
             yield number, next(csv.reader([line]), [])
 
 
-#: Bytes read to tell a text CSV log from a binary file or another encoding.
-_SNIFF = 4096
-#: Share of control bytes (not tab, line ends or form feed) above which a file is binary:
-#: random bytes have 11 %, a text log a few damaged lines' worth.
-_BINARY_SHARE = 0.05
-
-
 def _encoding(path: Path) -> str:
     """The text encoding of a CSV log from its first bytes: UTF-8 with or without the byte
     order mark spreadsheets write ("CSV UTF-8"), or UTF-16 with its mark.
@@ -54,16 +48,10 @@ def _encoding(path: Path) -> str:
     Raises:
         ValueError: more control bytes than a damaged text log has (a binary file).
     """
-    with open(path, "rb") as f:
-        head = f.read(_SNIFF)
-    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
-        return "utf-16"
-    # A logger that lost power leaves a few NUL bytes in a text log (a damaged line, counted);
-    # a binary file is full of control bytes.
-    control = sum(1 for byte in head if byte < 32 and byte not in b"\t\n\r\f")
-    if control > _BINARY_SHARE * len(head):
-        raise ValueError(f"{path.name}: not a text CSV log ({control} of its first {len(head)} bytes are "
-                         f"control bytes: binary data)")
+    first = head(path)
+    if first.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return "utf-16"  # before the binary test: every other byte of UTF-16 text is NUL
+    refuse_binary(path, first, "CSV log")
     return "utf-8-sig"
 
 

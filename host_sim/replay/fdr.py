@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .text import head, refuse_binary
 from .track import RawLog, out_of_range
 
 FT_M = 0.3048
@@ -27,9 +28,15 @@ _FIELDS = ("time_s", "lon_deg", "lat_deg", "alt_m", "pitch_deg", "roll_deg", "he
 
 
 def read(path: Path) -> RawLog:
-    """The samples of an FDR file."""
+    """The samples of an FDR file.
+
+    Raises:
+        ValueError: a binary file, or a text file without any DATA line (naming it).
+    """
+    refuse_binary(path, head(path), "X-Plane FDR log")
     hpr: list[tuple[float, float, float]] = []
     raw = RawLog(hpr=hpr)
+    line_no = 0
     with open(path, encoding="utf-8", errors="replace") as f:
         for line_no, line in enumerate(f, start=1):
             fields = [c.strip() for c in line.split(",")]
@@ -52,4 +59,7 @@ def read(path: Path) -> RawLog:
             raw.lines.append(line_no)
             raw.coords.append((lat, lon, msl))
             hpr.append((heading % 360.0, pitch, roll))
+    if raw.records_read == 0:
+        # Without this the log would end in "0 usable record(s)", as if its samples were bad.
+        raise ValueError(f"{path.name}: no DATA line in its {line_no} line(s): not an X-Plane FDR log")
     return raw

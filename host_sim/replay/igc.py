@@ -21,15 +21,22 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from .text import head, refuse_binary
 from .track import RawLog, out_of_range
 
 B_RECORD = re.compile(r"B(\d{2})(\d{2})(\d{2})(\d{2})(\d{5})([NS])(\d{3})(\d{5})([EW])([AV])([-\d]\d{4})([-\d]\d{4})")
 
 
 def read(path: Path) -> RawLog:
-    """The fixes of an IGC file."""
+    """The fixes of an IGC file.
+
+    Raises:
+        ValueError: a binary file, or a text file without any B record (naming it).
+    """
+    refuse_binary(path, head(path), "IGC log")
     raw = RawLog()
     fixes = []  # (line, time of day, lat, lon, pressure alt, gnss alt)
+    line_no = 0
     with open(path, encoding="ascii", errors="replace") as f:
         for line_no, line in enumerate(f, start=1):
             if not line.startswith("B"):
@@ -60,6 +67,9 @@ def read(path: Path) -> RawLog:
                 raw.problem("out_of_range", f"line {line_no}: {why}")
                 continue
             fixes.append((line_no, t, lat, lon, float(p_alt), float(g_alt)))
+    if raw.records_read == 0:
+        # Without this the log would end in "0 usable record(s)", as if its fixes were bad.
+        raise ValueError(f"{path.name}: no B record (fix) in its {line_no} line(s): not an IGC flight log")
     use_gnss = any(g != 0.0 for *_, g in fixes)
     days = _days([f[1] for f in fixes])
     for (line_no, t, lat, lon, p_alt, g_alt), day in zip(fixes, days, strict=True):

@@ -83,6 +83,7 @@ class TimingStats:
         self.hops: dict[str, deque[float]] = {key: deque(maxlen=MAX_SAMPLES) for key, _ in HOPS}
         self.critical: Counter[str] = Counter()
         self.intervals: deque[float] = deque(maxlen=MAX_SAMPLES)
+        self._first_time: float | None = None
         self._last_time: float | None = None
         # The external host's frames (CIGI): which reached the screen, and in what order.
         self.host_frames: dict[str, Any] = {"composites": 0, "first": None, "last": None, "repeated": 0,
@@ -95,6 +96,8 @@ class TimingStats:
             self.latencies.append(composite.time - composite.frame.control_sample_time)
             if self._last_time is not None:
                 self.intervals.append(composite.time - self._last_time)
+            else:
+                self._first_time = composite.time
             self._last_time = composite.time
             self._count_host_frame(composite.frame.host_frame_number)
             if hops is not None:
@@ -132,5 +135,10 @@ class TimingStats:
                 # The rate the rig sustained: the median interval, so that the first frames of a
                 # run (pages of terrain loading) do not count for the whole run.
                 "composite_rate_hz": round(1.0 / median, 3) if median > 0 else None,
+                # Wall-clock times (UNIX seconds) of the run's first and last composite: when
+                # the picture first appeared and how long the run showed it (`ig demo` reports
+                # its time to the first stitched frame from them); None before any.
+                "first_composite_time": self._first_time,
+                "last_composite_time": self._last_time,
                 **({"host_frames": dict(self.host_frames)} if self.host_frames["composites"] else {}),
             }

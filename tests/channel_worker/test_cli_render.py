@@ -125,3 +125,64 @@ def test_an_eye_below_the_terrain_is_said_in_one_warning_line(tmp_path, capsys):
     assert run([str(demo_scene_path()), "--eye", "0", "0", "100", "--width", "48", "--height", "36",
                 "--samples", "1", "--out", str(png)]) == 0
     assert "warning" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name,message", [
+    ("x.jpg", "argument --out: '{out}' is not a .exr or .png file (.exr: linear float RGB + Z range in metres; "
+              ".png: sRGB 8-bit)"),
+    ("x.tif", "argument --out: '{out}' is not a .exr or .png file"),
+    ("x", "argument --out: '{out}' is not a .exr or .png file"),
+    ("missing/dir/x.png", "argument --out: '{out}': directory '{dir}' does not exist"),
+    ("file.txt/x.png", "argument --out: '{out}': '{dir}' is not a directory"),
+])
+def test_an_out_that_cannot_be_written_as_asked_exits_2_naming_it(tmp_path, name, message, capsys):
+    """A JPEG is refused rather than written (help and behaviour agree: .exr or .png), and a
+    directory that is not there is named rather than created."""
+    (tmp_path / "file.txt").write_text("")
+    out = tmp_path / name
+    parser = argparse.ArgumentParser(prog="ig render")
+    cli_render.add_arguments(parser)
+    with pytest.raises(SystemExit) as exit_:
+        parser.parse_args(["--eye", "0", "0", "2", "--out", str(out)])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert f"ig render: error: {message.format(out=out, dir=out.parent)}" in err
+    assert not (tmp_path / "missing").exists() and not out.exists()
+
+
+def test_the_out_suffix_is_matched_whatever_its_case(tmp_path):
+    parser = argparse.ArgumentParser(prog="ig render")
+    cli_render.add_arguments(parser)
+    args = parser.parse_args(["--eye", "0", "0", "2", "--out", str(tmp_path / "X.PNG")])
+    assert args.out == tmp_path / "X.PNG"
+
+
+@pytest.mark.parametrize("scene_args,expected", [
+    ([], "airfield_terrain.json"),  # no scene: the demo's world
+    (["--scene", "airfield"], "airfield.json"),  # the flat airfield, by name
+    (["airfield"], "airfield.json"),  # the name as the positional SCENE
+    (["--scene", "airfield-terrain"], "airfield_terrain.json"),
+])
+def test_the_scene_is_the_demos_world_unless_named(tmp_path, scene_args, expected):
+    from channel_worker.data import SCENES
+    from channel_worker.pipeline.scene.load import bundled_scene_path, demo_scene_path
+
+    # The table's files are the loader's own bundled scenes.
+    assert {f for f, _ in SCENES.values()} == {bundled_scene_path().name, demo_scene_path().name}
+    png = tmp_path / "s.png"
+    assert run([*scene_args, "--eye", "0", "-1500", "300", "--width", "16", "--height", "12", "--samples", "1",
+                "--out", str(png)]) == 0
+    _, attrs = read_image(png)
+    assert attrs["scene"] == str(demo_scene_path().with_name(expected))
+
+
+def test_a_scene_given_twice_or_unknown_exits_2_naming_it(tmp_path, capsys):
+    out = str(tmp_path / "x.png")
+    assert run(["airfield", "--scene", "airfield-terrain", "--eye", "0", "0", "2", "--out", out]) == 2
+    assert ("ig render: error: the scene given twice: SCENE 'airfield' and --scene 'airfield-terrain'; give one"
+            in capsys.readouterr().err)
+    assert run(["--scene", "airfeild", "--eye", "0", "0", "2", "--out", out]) == 2
+    assert ("ig render: error: --scene: 'airfeild' is neither a bundled scene (airfield-terrain, airfield) nor a "
+            "file") in capsys.readouterr().err
+    assert run([str(tmp_path / "none.json"), "--eye", "0", "0", "2", "--out", out]) == 2
+    assert f"ig render: error: SCENE: '{tmp_path / 'none.json'}' is neither" in capsys.readouterr().err

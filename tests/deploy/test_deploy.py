@@ -447,3 +447,27 @@ def test_systemd_analyze_verifies_the_units(tmp_path):
     if result.returncode != 0 and re.search(no_systemd, result.stderr):
         pytest.skip(f"systemd-analyze cannot run here: {result.stderr.strip()[:160]}")
     assert result.returncode == 0 and "ig-" not in result.stderr, result.stderr
+
+
+def test_every_flag_the_readme_names_is_an_option_of_ig():
+    """A flag in backticks is one of the `ig` command the span names (`ig worker --bind`), or,
+    standing alone, of some `ig` command: deploy/README.md once sent readers to check a worker's
+    `--host`, which no command has."""
+    subcommands = build_parser()._subparsers._group_actions[0].choices
+    options = {name: {o for a in sub._actions for o in a.option_strings} for name, sub in subcommands.items()}
+    checked, unknown = 0, []
+    for span in re.findall(r"`([^`\n]+)`", (DEPLOY / "README.md").read_text()):
+        flags = re.findall(r"(?<![\w-])--[a-z][a-z-]*", span)
+        words = span.split()
+        if not flags:
+            continue
+        if words[0] == "ig":
+            owners = [words[1]]
+        elif words[0].startswith("--"):
+            owners = list(options)
+        else:
+            continue  # another program's flags: useradd, systemctl
+        checked += len(flags)
+        unknown += [f"{flag} (in `{span}`)" for flag in flags if not any(flag in options[c] for c in owners)]
+    assert checked > 10  # the pattern still finds the README's flags
+    assert not unknown, f"deploy/README.md names flags no ig command has: {unknown}"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import socket
+
 import pytest
 
 from services.cli import main
@@ -46,3 +48,32 @@ def test_bad_options_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["host", *argv])
     assert exc.value.code == 2
+
+
+def test_a_binary_igc_log_is_named_as_no_text_log(tmp_path, capsys):
+    garbage = tmp_path / "garbage.igc"
+    garbage.write_bytes(bytes(range(256)) * 20)
+    assert main(["host", "--replay", str(garbage)]) == 2
+    err = capsys.readouterr().err
+    assert "ig host: error: garbage.igc: not a text IGC log (" in err and "usable record" not in err
+
+
+@pytest.mark.parametrize("argv,words", [
+    # .invalid never resolves (RFC 6761); 192.0.2.1 (TEST-NET-1) is no machine's own address.
+    (["--cigi", "udp://nohost.invalid"], "--cigi: 'udp://nohost.invalid': cannot listen there: no such host"),
+    (["--cigi", "udp://192.0.2.1:8000"],
+     "--cigi: 'udp://192.0.2.1:8000': cannot listen there: not an address of this machine"),
+    (["--simhost", "fgfs://nohost.invalid:5550"],
+     "--simhost: 'fgfs://nohost.invalid:5550': cannot listen there: no such host"),
+])
+def test_a_listen_address_that_is_not_this_machines_exits_2(argv, words, capsys):
+    assert main(["host", *argv, "--duration", "0"]) == 2
+    err = capsys.readouterr().err
+    assert f"ig host: error: {words}" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_taken_cigi_port_exits_1(capsys):
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as taken:
+        taken.bind(("127.0.0.1", 0))
+        assert main(["host", "--cigi", f"udp://127.0.0.1:{taken.getsockname()[1]}", "--duration", "0"]) == 1
+    assert "--cigi: cannot listen" in capsys.readouterr().err

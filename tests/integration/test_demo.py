@@ -101,3 +101,12 @@ def test_the_host_is_paced_by_the_rig_and_recording_never_holds_it_up(tmp_path):
     assert len(pngs) + report["frames_not_recorded"] == due
     assert all(int(p.stem.split("_")[1]) % every == 0 for p in pngs)
     assert report["composite_rate_hz"] > 0
+    # The demo's own numbers, added to the report and printed: the first frame counts from the
+    # program's start, after the compile and the calibration; the flight from its first composite.
+    times = report["demo"]
+    assert times["compile_s"] > 0 and times["calibration_s"] > 0
+    assert times["compile_s"] + times["calibration_s"] <= times["first_frame_s"] <= times["total_s"]
+    assert 0 < times["flight_wall_s"] <= times["total_s"] - times["first_frame_s"]
+    assert times["flight_frames"] == frames and times["flight_rate_hz"] > 0 and times["flight_simulated_s"] == 0.5
+    assert f"first stitched frame {times['first_frame_s']:.1f} s after ig demo started" in proc.stdout
+    assert f"the flight: {frames} stitched frames in {times['flight_wall_s']:.1f} s wall-clock" in proc.stdout

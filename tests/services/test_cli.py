@@ -54,3 +54,54 @@ def test_demo_with_an_unknown_sample_pattern_exits_2_before_starting_anything(tm
     assert main(["demo", "--samples", "7", "--out", str(tmp_path / "demo")]) == 2
     assert "samples: 7 has no pattern" in capsys.readouterr().err
     assert not (tmp_path / "demo").exists()
+
+
+def test_demo_takes_a_bundled_scene_by_name(tmp_path, capsys):
+    from channel_worker.pipeline.scene.load import bundled_scene_path
+    from services.demo import prepare_rig
+
+    args = build_parser("demo").parse_args(["demo", "--scene", "airfield"])
+    _, scene = prepare_rig("demo", args)
+    assert scene == str(bundled_scene_path())
+    assert main(["demo", "--scene", "airfeild", "--out", str(tmp_path / "demo")]) == 2
+    assert ("ig demo: error: --scene: 'airfeild' is neither a bundled scene (airfield-terrain, airfield) nor a file"
+            in capsys.readouterr().err)
+    assert not (tmp_path / "demo").exists()
+
+
+def test_every_flag_of_the_readmes_commands_is_an_option_of_its_command():
+    """The README's commands, in its code blocks (`ig render [SCENE | --scene NAME|FILE] ...`,
+    continuation lines included) name only options their command has."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    def options_of(parser) -> dict[str, set[str]]:
+        """Options by command, "terrain build" for a command's own subcommands."""
+        out = {}
+        for name, sub in parser._subparsers._group_actions[0].choices.items():
+            out[name] = {o for a in sub._actions for o in a.option_strings}
+            if sub._subparsers is not None:
+                out.update({f"{name} {k}": v for k, v in options_of(sub).items()})
+        return out
+
+    options = options_of(build_parser())
+    checked, unknown = 0, []
+    for block in re.findall(r"```[a-z]*\n(.*?)```", text, re.S):
+        command = None
+        for line in block.splitlines():
+            words = line.split()
+            if words[:1] == ["ig"] and len(words) > 1 and words[1] in options:
+                command = " ".join(words[1:3]) if " ".join(words[1:3]) in options else words[1]
+            elif not line.startswith(" "):
+                command = None  # a line of another program, or RENDER OPTIONS: ends the command
+            if command is None:
+                continue
+            code = line.split("#", 1)[0]  # a shell comment is no option
+            for flag in re.findall(r"(?<![\w-])--(?:\[no-\])?[a-z][a-z-]*", code):
+                checked += 1
+                flags = {flag.replace("[no-]", ""), flag.replace("[no-]", "no-")}
+                if not flags & options[command]:
+                    unknown.append(f"ig {command} {flag}")
+    assert checked > 50  # the pattern still finds the README's commands
+    assert not unknown, f"README.md names options its commands do not have: {unknown}"

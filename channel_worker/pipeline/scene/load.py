@@ -136,7 +136,8 @@ class _Parser:
         self.codes = CodeParser(self.fail, self.number, {})
 
     def fail(self, where: str, message: str) -> SceneError:
-        return SceneError(f"{self.source}: {where}: {message}")
+        # The document itself has the empty path: "x.json: : missing key" named no place.
+        return SceneError(f"{self.source}: {where or '(top level)'}: {message}")
 
     def obj(self, value: Any, where: str, required: set[str], optional: set[str]) -> dict:
         if not isinstance(value, dict):

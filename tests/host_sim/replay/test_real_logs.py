@@ -407,6 +407,29 @@ def test_spreadsheet_encodings_are_read(tmp_path, encoding):
     assert len(track.t_s) == 3 and track.problems["corrupt"] == 0
 
 
+@pytest.mark.parametrize("name,what", [("b.csv", "CSV log"), ("b.igc", "IGC log"), ("b.fdr", "X-Plane FDR log")])
+def test_random_bytes_are_refused_as_no_text_log_by_every_text_reader(tmp_path, name, what):
+    # Read as text, random bytes were lines of garbage: the IGC reader found no fix and ended
+    # in "0 usable record(s), need at least 2 (no problems)".
+    binary = tmp_path / name
+    binary.write_bytes(np.random.default_rng(0).integers(0, 256, 5000, dtype=np.uint8).tobytes())
+    with pytest.raises(ValueError, match=rf"{name}: not a text {what} \(\d+ of its first 4096 bytes are control"):
+        load_track(binary)
+
+
+@pytest.mark.parametrize("name,text,message", [
+    ("h.igc", "AXXX001 logger\nHFDTE010725\n", "h.igc: no B record (fix) in its 2 line(s): not an IGC flight log"),
+    ("e.igc", "", "e.igc: no B record (fix) in its 0 line(s): not an IGC flight log"),
+    ("h.fdr", "A\n4\nACFT,a.acf,\n", "h.fdr: no DATA line in its 3 line(s): not an X-Plane FDR log"),
+])
+def test_a_text_log_without_records_says_so(tmp_path, name, text, message):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ValueError) as exc:
+        load_track(path)
+    assert str(exc.value) == message
+
+
 def test_a_binary_file_is_refused_as_such_and_a_few_nul_bytes_are_not(tmp_path):
     rng = np.random.default_rng(0)
     binary = tmp_path / "b.csv"

@@ -55,10 +55,13 @@ def test_stats_report_every_hop_the_critical_channel_and_the_rate():
     assert doc["critical_channel"] == {"b": 4, "c": 1}
     assert doc["composite_rate_hz"] == pytest.approx(10.0)
     assert doc["composite_interval"]["count"] == 5
+    assert (doc["first_composite_time"], doc["last_composite_time"]) == pytest.approx((100.04, 100.54))
 
 
 def test_percentiles_have_a_max_and_nothing_without_data():
     assert percentiles([0.001, 0.002, 0.010]) == {"p50_ms": 2.0, "p95_ms": pytest.approx(9.2),
                                                   "p99_ms": pytest.approx(9.84), "max_ms": 10.0, "count": 3}
     assert percentiles([]) == {"p50_ms": None, "p95_ms": None, "p99_ms": None, "max_ms": None, "count": 0}
-    assert TimingStats().report()["composite_rate_hz"] is None
+    empty = TimingStats().report()
+    assert empty["composite_rate_hz"] is None
+    assert empty["first_composite_time"] is None and empty["last_composite_time"] is None

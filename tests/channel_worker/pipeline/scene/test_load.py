@@ -95,3 +95,17 @@ def test_a_face_on_another_shares_its_plane_and_layers_above_it():
 def test_bad_layers_are_named(extra, z2, message):
     with pytest.raises(SceneError, match=message):
         parse_scene(_layered(extra, z2=z2))
+
+
+@pytest.mark.parametrize("text,message", [
+    ('{"polygons": "nope"}', "wrongtype.json: (top level): missing key "),
+    ('[1, 2]', "wrongtype.json: (top level): expected an object, got [1, 2]"),
+    ('"a scene"', 'wrongtype.json: (top level): expected an object, got "a scene"'),
+])
+def test_an_error_of_the_whole_document_names_the_top_level(tmp_path, text, message):
+    # The document's own JSON path is empty: the message once read "wrongtype.json: : missing key".
+    path = tmp_path / "wrongtype.json"
+    path.write_text(text)
+    with pytest.raises(SceneError) as exc:
+        load_scene(path)
+    assert str(exc.value).startswith(f"{tmp_path}/{message}")
