@@ -59,13 +59,14 @@ def _wrap(u, period):
 
 
 @njit(cache=True, inline="always")
-def _bilinear(texels, offset, width_log2, height_log2, sx, sy):
-    """Bilinear sample of the level stored at texels[offset:] (2**width_log2 x 2**height_log2,
-    row-major) at (sx, sy) in that level's texels, wrapped; 0 for a non-finite coordinate."""
+def _bilinear_at(offset, width_log2, height_log2, sx, sy):
+    """The four texels around (sx, sy) in a level stored at offset (2**width_log2 x
+    2**height_log2, row-major), wrapped, and their weights: (i00, i10, i01, i11, w00, w10,
+    w01, w11); every weight 0 for a non-finite coordinate (nothing sensible to sample)."""
     width = 1 << width_log2
     height = 1 << height_log2
     if not (math.isfinite(sx) and math.isfinite(sy)):
-        return 0.0, 0.0, 0.0
+        return offset, offset, offset, offset, 0.0, 0.0, 0.0, 0.0
     u = _wrap(sx - 0.5, float(width))
     v = _wrap(sy - 0.5, float(height))
     x0 = int(math.floor(u))
@@ -79,20 +80,26 @@ def _bilinear(texels, offset, width_log2, height_log2, sx, sy):
     c1 = (x0 + 1) & mx
     r0 = offset + (y0 & my) * width
     r1 = offset + ((y0 + 1) & my) * width
+    return (r0 + c0, r0 + c1, r1 + c0, r1 + c1,
+            (1.0 - fx) * (1.0 - fy), fx * (1.0 - fy), (1.0 - fx) * fy, fx * fy)
+
+
+@njit(cache=True, inline="always")
+def _bilinear(texels, offset, width_log2, height_log2, sx, sy):
+    """Bilinear sample (r, g, b) of the level stored at texels[offset:] (2**width_log2 x
+    2**height_log2, row-major) at (sx, sy) in that level's texels, wrapped; 0 for a
+    non-finite coordinate."""
+    i00, i10, i01, i11, w00, w10, w01, w11 = _bilinear_at(offset, width_log2, height_log2, sx, sy)
     tex = texels
-    w00 = (1.0 - fx) * (1.0 - fy)
-    w10 = fx * (1.0 - fy)
-    w01 = (1.0 - fx) * fy
-    w11 = fx * fy
-    r = w00 * tex[r0 + c0, 0] + w10 * tex[r0 + c1, 0] + w01 * tex[r1 + c0, 0] + w11 * tex[r1 + c1, 0]
-    g = w00 * tex[r0 + c0, 1] + w10 * tex[r0 + c1, 1] + w01 * tex[r1 + c0, 1] + w11 * tex[r1 + c1, 1]
-    b = w00 * tex[r0 + c0, 2] + w10 * tex[r0 + c1, 2] + w01 * tex[r1 + c0, 2] + w11 * tex[r1 + c1, 2]
+    r = w00 * tex[i00, 0] + w10 * tex[i10, 0] + w01 * tex[i01, 0] + w11 * tex[i11, 0]
+    g = w00 * tex[i00, 1] + w10 * tex[i10, 1] + w01 * tex[i01, 1] + w11 * tex[i11, 1]
+    b = w00 * tex[i00, 2] + w10 * tex[i10, 2] + w01 * tex[i01, 2] + w11 * tex[i11, 2]
     return r, g, b
 
 
 # Not inlined: a texture code's shading reads it in three places (level 0, and the two
 # levels of a trilinear read); inlined, it made the shading's compile twice as long. The fade
-# filter's level-0 read (texture_modulation) inlines _bilinear instead: one place.
+# filter's level-0 read (texture_modulation) inlines _bilinear_at instead: one place.
 @borrowing
 def texel_bilinear(store, t, level, x, y):
     """Bilinear sample of texture t's level `level` at (x, y) in texels of level 0.
@@ -197,6 +204,7 @@ def texture_modulation(store, row, texture_filter, u, v, ux, vx, uy, vy):
     sr = 0.0
     sg = 0.0
     sb = 0.0
+    mono = row[LOOK_PER_COLOUR] == 0.0
     for k in range(MAX_CODE_TEXTURES):
         t = int(row[LOOK_TEXTURE + k])
         if t < 0:
@@ -240,12 +248,20 @@ def texture_modulation(store, row, texture_filter, u, v, ux, vx, uy, vy):
         cg = 0.0
         cb = 0.0
         if keep > 0.0:
-            # Level 0: read in place (the fade filter's only read).
-            br, bg, bb = _bilinear(store.texels, store.level[t, 0, 0], store.level[t, 0, 1], store.level[t, 0, 2],
-                                   tx, ty)
-            cr = keep * br
-            cg = keep * bg
-            cb = keep * bb
+            # Level 0: read in place (the fade filter's only read); a mono code reads the
+            # texels' mean channel alone, a third of the loads.
+            i00, i10, i01, i11, w00, w10, w01, w11 = _bilinear_at(
+                store.level[t, 0, 0], store.level[t, 0, 1], store.level[t, 0, 2], tx, ty)
+            tex = store.texels
+            if mono:
+                m = keep * (w00 * tex[i00, 3] + w10 * tex[i10, 3] + w01 * tex[i01, 3] + w11 * tex[i11, 3])
+                cr = m
+                cg = m
+                cb = m
+            else:
+                cr = keep * (w00 * tex[i00, 0] + w10 * tex[i10, 0] + w01 * tex[i01, 0] + w11 * tex[i11, 0])
+                cg = keep * (w00 * tex[i00, 1] + w10 * tex[i10, 1] + w01 * tex[i01, 1] + w11 * tex[i11, 1])
+                cb = keep * (w00 * tex[i00, 2] + w10 * tex[i10, 2] + w01 * tex[i01, 2] + w11 * tex[i11, 2])
         if keep < 1.0:
             mr, mg, mb = texel_trilinear(store, t, tx, ty, texture_lod(rho))
             cr += (1.0 - keep) * mr
@@ -256,7 +272,7 @@ def texture_modulation(store, row, texture_filter, u, v, ux, vx, uy, vy):
         sg += amp * cg
         sb += amp * cb
     intensity = row[LOOK_INTENSITY]
-    if row[LOOK_PER_COLOUR] != 0.0:
+    if not mono:
         return max(0.0, 1.0 + intensity * sr), max(0.0, 1.0 + intensity * sg), max(0.0, 1.0 + intensity * sb)
-    mono = max(0.0, 1.0 + intensity * (sr + sg + sb) * (1.0 / 3.0))
-    return mono, mono, mono
+    grey = max(0.0, 1.0 + intensity * (sr + sg + sb) * (1.0 / 3.0))
+    return grey, grey, grey

@@ -41,8 +41,11 @@ __all__ = [
 
 #: Most textures one store holds. A texture code names three of them, and 64 fit six bits
 #: each; the bound also caps the store's memory: 64 textures of 1024 x 1024 with their
-#: pyramids are 1.07 GB of float32 texels, held by every worker process.
+#: pyramids are 1.43 GB of float32 texels (four channels), held by every worker process.
 MAX_TEXTURES = 64
+
+#: Channels of a stored texel: the signal's r, g, b and their mean (TextureStore.texels).
+TEXEL_CHANNELS = 4
 
 #: Largest side of a stored texture (texels); larger images are resampled down to it.
 MAX_STORE_SIDE = 1024
@@ -70,9 +73,11 @@ class TextureStore(NamedTuple):
     """Every texture of a scene, as the kernels take it (whole, as one argument).
 
     Attributes:
-        texels: (M, 3) float32: every mip level of every texture, each level row-major (texel
+        texels: (M, 4) float32: every mip level of every texture, each level row-major (texel
             (x, y) of a level at offset + y * width + x), concatenated. The modulation signal
-            ``rgb / mean_rgb - 1``, not colour.
+            ``rgb / mean_rgb - 1``, not colour, and in channel 3 its mean over r, g and b:
+            a mono code (one signal for all three colours) reads one channel, not three (the
+            terrain's detail reads a texel for nearly every pixel).
         level: (T, MAX_LEVELS, 3) int64: per texture t, per level l: (offset of texel (0, 0) in
             texels, log2 width, log2 height). Level 0 is full size; levels past the texture's
             last repeat its last (1 x 1) level.
@@ -100,7 +105,7 @@ def empty_store() -> TextureStore:
     """The store of a scene without textures (T = 0): 1-element arrays (one 1 x 1 texture of
     signal 0, no contrast) so that kernels take one type whether or not a scene has textures."""
     return TextureStore(
-        texels=np.zeros((1, 3), np.float32),
+        texels=np.zeros((1, TEXEL_CHANNELS), np.float32),
         level=np.zeros((1, MAX_LEVELS, 3), np.int64),
         levels=np.ones(1, np.int64),
         finest=np.zeros(1, np.float64),
@@ -209,7 +214,8 @@ def build_store(images: Sequence[np.ndarray], names: Sequence[str]) -> TextureSt
             sig = pyramid[min(lv, len(pyramid) - 1)]
             if lv < len(pyramid):
                 level[t, lv] = (offset, int(math.log2(sig.shape[1])), int(math.log2(sig.shape[0])))
-                chunks.append(sig.reshape(-1, 3))
+                flat = sig.reshape(-1, 3)
+                chunks.append(np.concatenate([flat, flat.mean(axis=1, keepdims=True)], axis=1))
                 offset += sig.shape[0] * sig.shape[1]
             else:
                 level[t, lv] = level[t, lv - 1]

@@ -38,7 +38,7 @@ def sinusoid(size: int, k: float, axis: int = 1) -> np.ndarray:
 
 def level_signal(store, t: int, lv: int) -> np.ndarray:
     offset, wl, hl = store.level[t, lv]
-    return store.texels[offset : offset + (1 << wl) * (1 << hl)].reshape(1 << hl, 1 << wl, 3)
+    return store.texels[offset : offset + (1 << wl) * (1 << hl), :3].reshape(1 << hl, 1 << wl, 3)
 
 
 # --- load_image ---------------------------------------------------------------------------
@@ -173,7 +173,9 @@ def test_store_layout_and_signal():
     store = build_store(images, ["n", "c", "odd"])
     assert store.names == ("n", "c", "odd")
     assert store.level.shape == (3, MAX_LEVELS, 3) and store.level.dtype == np.int64
-    assert store.texels.dtype == np.float32 and store.texels.shape[1] == 3
+    assert store.texels.dtype == np.float32 and store.texels.shape[1] == 4
+    # Channel 3 is the mean of the signal's three: what a mono code reads.
+    np.testing.assert_allclose(store.texels[:, 3], store.texels[:, :3].mean(axis=1), atol=1e-7)
     # 40 x 9 -> 32 x 8 (nearest powers of two): 6 levels, the last (1 x 1) repeated.
     assert list(store.levels) == [7, 6, 6]
     assert tuple(store.level[2, 0, 1:]) == (3, 5)
@@ -231,7 +233,7 @@ def test_finest_is_capped_at_half():
 
 def test_empty_store():
     empty = empty_store()
-    assert empty.names == () and empty.texels.shape == (1, 3) and empty.level.shape == (1, MAX_LEVELS, 3)
+    assert empty.names == () and empty.texels.shape == (1, 4) and empty.level.shape == (1, MAX_LEVELS, 3)
     assert build_store([], []).texels.shape == empty.texels.shape
 
 

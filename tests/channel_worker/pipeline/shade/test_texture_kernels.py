@@ -10,11 +10,23 @@ from hypothesis import strategies as st
 from numba import njit, typeof
 
 from channel_worker.pipeline.jit import borrowing
+from channel_worker.pipeline.scene.surfaces import (
+    LOOK_AMPLITUDE,
+    LOOK_DETAIL,
+    LOOK_INTENSITY,
+    LOOK_PER_COLOUR,
+    LOOK_PRIMARY,
+    LOOK_SLOTS,
+    LOOK_TEXTURE,
+)
 from channel_worker.pipeline.scene.texture_sampling import (
+    FADE,
+    TextureArrays,
     fade_amplitude,
     texel_bilinear,
     texel_trilinear,
     texture_lod,
+    texture_modulation,
 )
 from channel_worker.pipeline.scene.textures import build_store, empty_store
 
@@ -42,7 +54,7 @@ def trilinear(store, t, x, y, lod):
 
 def level_signal(store, t, lv):
     offset, wl, hl = store.level[t, lv]
-    return store.texels[offset : offset + (1 << wl) * (1 << hl)].reshape(1 << hl, 1 << wl, 3).astype(np.float64)
+    return store.texels[offset : offset + (1 << wl) * (1 << hl), :3].reshape(1 << hl, 1 << wl, 3).astype(np.float64)
 
 
 def reference_bilinear(store, t, level, x, y):
@@ -192,3 +204,30 @@ def test_trilinear_stays_in_bounds_and_in_range(t, x, y, lod):
     lo = STORE.texels.min() - 1e-6
     hi = STORE.texels.max() + 1e-6
     assert np.all((got >= lo) & (got <= hi))
+
+
+@njit(boundscheck=True)
+def modulation(store, row, u, v, side):
+    return texture_modulation(store, row, FADE, u, v, side, 0.0, 0.0, side)
+
+
+@pytest.mark.parametrize("side", [0.01, 0.2, 0.45])
+def test_a_mono_code_reads_the_mean_channel_as_the_mean_of_the_three(side):
+    # A mono code (one signal for every colour) reads the texels' fourth channel alone: it must
+    # give the mean of what the per-colour code reads from the other three, at any footprint
+    # (side: metres a pixel, one texel a metre), as far as nothing is clamped at 0.
+    store = TextureArrays(STORE.texels, STORE.level, STORE.levels, STORE.finest)
+    row = np.zeros(LOOK_SLOTS)
+    row[LOOK_TEXTURE:LOOK_TEXTURE + 3] = (0, 1, -1)
+    row[LOOK_INTENSITY] = 0.3
+    row[LOOK_PRIMARY:LOOK_PRIMARY + 2] = 1.0 / 16.0  # a 16-texel repeat 16 m long
+    row[LOOK_DETAIL:LOOK_DETAIL + 2] = 1.0 / 32.0
+    row[LOOK_AMPLITUDE] = 0.5
+    rng = np.random.default_rng(3)
+    for u, v in rng.uniform(-1e4, 1e4, (50, 2)):
+        colour = row.copy()
+        colour[LOOK_PER_COLOUR] = 1.0
+        r, g, b = modulation(store, colour, u, v, side)
+        grey = modulation(store, row, u, v, side)
+        assert grey[0] == grey[1] == grey[2]
+        assert abs(grey[0] - (r + g + b) / 3.0) < 1e-6, (u, v, grey, (r, g, b))
