@@ -32,13 +32,13 @@ STAND = (slice(30, 34), slice(20, 24))
 CHANNEL = ChannelSpec.symmetric("c", 320, 240, 60.0)
 
 
-def forest_scene(px: float = 48.0):
-    """A flat field with one stand of trees, with the land's detail (no textures) and near
-    trees px pixels wide."""
+def forest_scene(px: float = 48.0, relief=(0.12, 0.25, 0.06)):
+    """A flat field of one relief colour with one stand of trees, with the land's detail (no
+    textures) and near trees px pixels wide."""
     mask = np.zeros((N, N), np.uint8)
     mask[STAND] = 1
     colours = np.empty((N + 1, N + 1, 3))
-    colours[...] = (0.12, 0.25, 0.06)
+    colours[...] = relief
     terrain = build_terrain(np.zeros((N + 1, N + 1)), colours, spacing_m=SPACING, origin=(0.0, 0.0, 0.0),
                             page_size=16, pattern_mask=mask, patterns=[TREE_PATTERN])
     db = scene(terrain=terrain, sky="#a4c8ea", earth="#5f8a3e")
@@ -154,3 +154,19 @@ def test_the_switch_to_trees_does_not_pop(stand, monkeypatch):
     _, hard = approach(stand)
     assert jump(distance, hard, 120.0, 260.0) > 2.0, hard
     assert jump(distance, smooth, 120.0, 260.0) < 1.8, smooth
+
+
+def test_a_stands_foot_shows_no_rim_of_the_relief_colour():
+    # A blue relief under the meadow's green: the land's detail recolours every meadow step,
+    # and a step at a stand's foot is part meadow, part stand. It used to take the stand's
+    # class for the whole step, which leaves the colour as it is: its meadow share kept the
+    # relief's own colour, a rim along the foot (bright teal on the bundled terrain).
+    db = dataclasses.replace(forest_scene(px=0.0, relief=(0.05, 0.08, 0.3)), fog=None)
+    assert db.near_trees is None  # the blocks themselves, near as they are
+    eye = Eyepoint(np.array([660.0, 700.0, 40.0]), 0.0, -8.0, 0.0)
+    rgb = render_frame(db, CHANNEL, eye, RenderOptions(samples=4, haze=False)).rgb.astype(np.float64)
+    ground = rgb[CHANNEL.height // 2 + 10:]  # below the horizon: meadow and the stand
+    blue = ground[..., 2] / np.maximum(ground.sum(axis=-1), 1e-9)
+    meadow = rgb[-1, CHANNEL.width // 2]
+    # The stand (canopy, trunks) is greener than blue; the meadow is the meadow's class hue.
+    assert blue.max() <= meadow[2] / meadow.sum() + 0.02, (blue.max(), meadow)
