@@ -10,6 +10,7 @@ from services.rig.cli_common import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
+    add_metrics_arguments,
     add_rig_arguments,
     add_wire_arguments,
     error,
@@ -24,6 +25,7 @@ log = logging.getLogger("ig.worker")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig worker`."""
     add_rig_arguments(parser)
+    add_metrics_arguments(parser, rig_key="channel's metrics_port")
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--channel", help="name of the rig channel to render")
     which.add_argument("--channel-index", type=int, metavar="N",
@@ -44,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     Returns 0 ok, 1 cannot listen, 2 bad input (rig, channel, scene, samples, or a host that
     does not know the channel).
     """
-    from services.rig.cli_common import security_of
+    from services.rig.cli_common import metrics_address_of, security_of
     from services.rig.grpc_util import configure_logging, stop_on_signals
     from services.rig.rigfile import RigError, bind_address, scene_path
     from services.rig.threads import size_thread_pool
@@ -88,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
         worker = ChannelWorker(database, channel.spec, host_address=rig.host_address,
                                compositor_address=rig.compositor_address, options=options, once=args.once,
                                security=security, cigi=rig.cigi.configured, wire=wire)
-        serve_worker(worker, bind_address(channel.address, args.bind), stop, security=security)
+        serve_worker(worker, bind_address(channel.address, args.bind), stop, security=security,
+                     metrics_address=metrics_address_of(args, channel.metrics_port))
     except OSError as exc:
         error("worker", exc)
         return EXIT_FAILED

@@ -45,12 +45,14 @@ from services.rig.grpc_util import (
     set_serving,
 )
 from services.rig.memory import keep_freed_memory
+from services.rig.metrics import serve_metrics
 from services.rig.options import RenderOptions
 from services.rig.report import FrameReport
 from services.rig.resubscribe import RunEndedBackoff, run_ended
 from services.rig.rigfile import WireSpec
 from services.rig.wire import eyepoint_from_proto, options_to_proto, report_to_proto
 
+from .metrics import WorkerMetrics
 from .pipeline.kernel_cache import serialise_cache_writes
 from .pipeline.render import render_frame
 from .pipeline.scene.database import Database
@@ -194,6 +196,9 @@ class ChannelWorker:
         self._backoff = RunEndedBackoff()
         # The host's environment as this worker's database, built once per environment.
         self._environments = EnvironmentCache()
+        #: Its Prometheus metrics: the counters above, read at scrape time, and every frame's
+        #: stage times (docs/metrics.md).
+        self.metrics = WorkerMetrics(channel.name, self.status)
 
     def warm_up(self) -> None:
         """Compile the numba kernels before the first real frame (several seconds the first time).
@@ -379,6 +384,7 @@ class ChannelWorker:
             return
         render_time = time.perf_counter() - t0
         render_end = time.time()
+        self.metrics.observe(report, render_time)
         head = compositor_pb2.SubmitChannelImageRequest(
             frame_number=number, channel_name=self.channel.name, width=self.channel.width,
             height=self.channel.height, eyepoint=frame.eyepoint, render_time_s=render_time,
@@ -438,17 +444,30 @@ class WorkerStatusServicer(worker_pb2_grpc.ChannelWorkerServiceServicer):
 
 
 def serve_worker(worker: ChannelWorker, address: str, stop: threading.Event, *,
-                 security: Security | None = None) -> None:
+                 security: Security | None = None, metrics_address: str | None = None) -> None:
     """Serve the worker's health and status on address, warm up, then render; blocks until it
     is done.
 
     Health is NOT_SERVING while the kernels compile (minutes on a cold cache, a second or two
     from the cache) and SERVING once a warm-up frame has rendered, so the host, which waits for
-    every channel that answers, knows a compiling worker from a dead one.
+    every channel that answers, knows a compiling worker from a dead one. metrics_address:
+    host:port of its Prometheus metrics (docs/metrics.md), None for none; served from the start,
+    so that a compiling worker is seen (ready 0).
 
     Raises:
-        OSError: address cannot be bound, or plaintext off the loopback is not allowed.
+        OSError: address or metrics_address cannot be bound, or plaintext off the loopback is
+            not allowed.
     """
+    metrics = serve_metrics(worker.metrics.registry, metrics_address)
+    try:
+        _serve_worker(worker, address, stop, security)
+    finally:
+        if metrics is not None:
+            metrics.close()
+
+
+def _serve_worker(worker: ChannelWorker, address: str, stop: threading.Event, security: Security | None) -> None:
+    """serve_worker without the metrics."""
     server = make_server(max_workers=4)
     add_service(server, WorkerStatusServicer(worker), worker_pb2.DESCRIPTOR.services_by_name["ChannelWorkerService"],
                 refused=worker.refuse)

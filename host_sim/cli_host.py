@@ -24,6 +24,7 @@ from services.rig.cli_common import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
+    add_metrics_arguments,
     add_rig_arguments,
     error,
     geodetic_point,
@@ -43,6 +44,7 @@ UNTIL_STOPPED_S = 1e9
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig host`."""
     add_rig_arguments(parser)
+    add_metrics_arguments(parser, rig_key="[host] metrics_port")
     parser.add_argument("--rate", type=positive, default=60.0,
                         help="frame rate, Hz, with --pace ticks; the most frames a second with --pace acks "
                              "(default 60)")
@@ -122,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     input (a --cigi or --simhost address that does not resolve or is not this machine's)."""
     from host_sim.publisher import FramePublisher
     from host_sim.server import serve
-    from services.rig.cli_common import security_of
+    from services.rig.cli_common import metrics_address_of, security_of
     from services.rig.grpc_util import configure_logging, stop_on_signals
     from services.rig.rigfile import bind_address
 
@@ -190,7 +192,7 @@ def run(args: argparse.Namespace) -> int:
         stop_on_signals(stop)
         try:
             serve(publisher, bind_address(rig.host_address, args.bind), stop, eyepoints=eyepoints,
-                  security=security)
+                  security=security, metrics_address=metrics_address_of(args, rig.host_metrics_port))
         except OSError as exc:
             error("host", exc)
             return EXIT_FAILED

@@ -10,7 +10,9 @@ import grpc
 
 from ig.v1 import host_pb2, host_pb2_grpc
 from services.rig.grpc_util import Security, add_health, add_service, bind, make_server, set_not_serving
+from services.rig.metrics import serve_metrics
 
+from .metrics import host_registry
 from .publisher import (
     COMPLETED,
     STOPPED,
@@ -145,7 +147,8 @@ def eyepoint_source_status(eyepoints: Any) -> dict[str, Any]:
 
 
 def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
-          linger_s: float = 2.0, eyepoints: Any = None, security: Security | None = None) -> int:
+          linger_s: float = 2.0, eyepoints: Any = None, security: Security | None = None,
+          metrics_address: str | None = None) -> int:
     """Serve the host on address and run the publisher until the run ends or stop is set.
 
     After a run that ends by itself it keeps answering for linger_s so that late
@@ -153,16 +156,30 @@ def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
     (stop set: SIGTERM) it keeps answering only until every stream has delivered the end of the
     run, with the final counters (at most _STOP_DRAIN_S). Then it stops. eyepoints is what the
     publisher's source belongs to (HostServicer); security: mutual TLS or plaintext
-    (grpc_util.bind). Returns the bound port.
+    (grpc_util.bind); metrics_address: host:port of its Prometheus metrics (docs/metrics.md),
+    None for none. Returns the bound port.
 
     Raises:
-        OSError: address cannot be bound, or plaintext off the loopback is not allowed.
+        OSError: address or metrics_address cannot be bound, or plaintext off the loopback is
+            not allowed.
     """
-    server = make_server()
-    add_service(server, HostServicer(publisher, eyepoints=eyepoints),
-                host_pb2.DESCRIPTOR.services_by_name["HostService"], refused=publisher.refuse)
-    health = add_health(server, [SERVICE], refused=publisher.refuse)
-    port = bind(server, address, security)
+    servicer = HostServicer(publisher, eyepoints=eyepoints)
+    metrics = serve_metrics(host_registry(servicer.status), metrics_address)
+    try:
+        server = make_server()
+        add_service(server, servicer, host_pb2.DESCRIPTOR.services_by_name["HostService"], refused=publisher.refuse)
+        health = add_health(server, [SERVICE], refused=publisher.refuse)
+        port = bind(server, address, security)
+        _run(publisher, server, health, address, stop, linger_s)
+    finally:
+        if metrics is not None:
+            metrics.close()
+    return port
+
+
+def _run(publisher: FramePublisher, server: grpc.Server, health: Any, address: str, stop: threading.Event,
+         linger_s: float) -> None:
+    """serve()'s life of the server: start, run the publisher, linger or drain, stop."""
     server.start()
     if publisher.pace == "ticks":
         log.info("host listening on %s (run %s, %d frames at %.1f Hz)", address, publisher.status.run_id,
@@ -186,4 +203,3 @@ def serve(publisher: FramePublisher, address: str, stop: threading.Event, *,
     s = publisher.snapshot()
     log.info("host done: %d frames published, %d eyepoints rejected, ack timeouts %s",
              s.frames_published, s.eyepoints_rejected, s.ack_timeouts)
-    return port

@@ -171,11 +171,18 @@ def free_port() -> int:
 
 def local_rig(rig: Rig) -> Rig:
     """The rig with every service on a free 127.0.0.1 port, so a demo never collides with a rig
-    already running on the fixed ports; plaintext, as everything stays on the loopback (a rig
-    file's [tls] table is for its machines)."""
-    chans = tuple(replace(ch, address=f"127.0.0.1:{free_port()}") for ch in rig.channels)
+    already running on the fixed ports, and so do the metrics ports the rig file sets;
+    plaintext, as everything stays on the loopback (a rig file's [tls] table is for its
+    machines)."""
+    def metrics(port: int) -> int:
+        return free_port() if port else 0
+
+    chans = tuple(replace(ch, address=f"127.0.0.1:{free_port()}", metrics_port=metrics(ch.metrics_port))
+                  for ch in rig.channels)
     return replace(rig, host_address=f"127.0.0.1:{free_port()}",
-                   compositor_address=f"127.0.0.1:{free_port()}", channels=chans, tls=TlsSpec())
+                   compositor_address=f"127.0.0.1:{free_port()}", channels=chans, tls=TlsSpec(),
+                   host_metrics_port=metrics(rig.host_metrics_port),
+                   compositor_metrics_port=metrics(rig.compositor_metrics_port))
 
 
 class Processes:

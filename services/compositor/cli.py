@@ -11,6 +11,7 @@ from services.rig.cli_common import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_OK,
+    add_metrics_arguments,
     add_rig_arguments,
     add_wire_arguments,
     error,
@@ -26,6 +27,7 @@ log = logging.getLogger("ig.compositor")
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig compositor`."""
     add_rig_arguments(parser)
+    add_metrics_arguments(parser, rig_key="[compositor] metrics_port")
     parser.add_argument("--out", default="out/compositor",
                         help="output directory: runs/<run id>/frames/frame_NNNNNN.png (and .exr) and "
                              "runs/<run id>/report.json for every run of the host, latest -> the newest run "
@@ -64,7 +66,7 @@ def every(text: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     """Serve CompositorService until the run ends (--once) or SIGTERM; 0 ok, 1 failed, 2 bad input."""
-    from services.rig.cli_common import security_of
+    from services.rig.cli_common import metrics_address_of, security_of
     from services.rig.grpc_util import configure_logging, stop_on_signals
     from services.rig.memory import return_freed_memory
     from services.rig.rigfile import bind_address
@@ -112,7 +114,8 @@ def run(args: argparse.Namespace) -> int:
     largest = max(s.width * s.height * 6 for s in specs) + 64 * 1024
     try:
         serve(compositor, bind_address(rig.compositor_address, args.bind), rig.host_address, stop,
-              once=args.once, grace_s=args.grace, security=security, max_receive_bytes=largest)
+              once=args.once, grace_s=args.grace, security=security, max_receive_bytes=largest,
+              metrics_address=metrics_address_of(args, rig.compositor_metrics_port))
     except OSError as exc:
         error("compositor", exc)
         return EXIT_FAILED

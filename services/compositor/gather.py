@@ -538,6 +538,24 @@ class FrameGatherer:
                 "wire": self._wire_report(),
             }
 
+    def counters(self) -> dict:
+        """The counters alone, as a JSON-ready dict, without the figures report() computes
+        (what /metrics reads at every scrape; metrics.run_counts)."""
+        with self._lock:
+            return {
+                "frames_published": self.frames_published,
+                "frames_complete": self.complete,
+                "frames_incomplete": {c: self.incomplete[c] for c in INCOMPLETE_CAUSES},
+                "frames_evicted": self.evicted,
+                "frames_pending": len(self._open),
+                "pending_bytes": self._bytes,
+                "missing_by_channel": dict(self.missing_by_channel),
+                "late_by_channel": dict(self.late_by_channel),
+                "rejected_submissions": dict(self.rejected),
+                "images_by_channel": {c: {w: n[w] for w in ("srgb8", "half")} for c, n in self.wire_images.items()},
+                "shared_memory_by_channel": {c: n["shared_memory"] for c, n in self.wire_images.items()},
+            }
+
     def _wire_report(self) -> dict:
         """What the workers sent and how long it took (lock held): per channel the images by
         format and way (srgb8, half; shared_memory, inline) and the bytes of the last image's

@@ -30,6 +30,7 @@ from services.rig.grpc_util import (
     make_server,
     set_not_serving,
 )
+from services.rig.metrics import serve_metrics
 from services.rig.resubscribe import RunEndedBackoff, run_ended
 from services.rig.rigfile import WireSpec
 from services.rig.shared_images import SharedImageReader, shared_memory_supported
@@ -43,8 +44,9 @@ from .gather import (
     FrameGatherer,
     InvalidSubmission,
 )
+from .metrics import CompositorMetrics, CountKey, run_counts
 from .stitch import FrameRecorder, RecorderCounts, compose
-from .timing import TimingStats
+from .timing import HOPS, TimingStats
 from .watch import Watchers, summary
 
 log = logging.getLogger("ig.compositor")
@@ -134,7 +136,14 @@ class Compositor:
         self._lock = threading.RLock()
         self._ended: list[dict] = []
         self._enders: list[threading.Thread] = []
+        # The counts of the runs over and gone (no longer current), summed; the runs whose counts
+        # may still change are live (counts()).
+        self._folded: Counter[CountKey] = Counter()
+        self._live: list[_Run] = []
         self._run = self._new_run("")
+        #: Its Prometheus metrics (docs/metrics.md): counts() and current() read at scrape time,
+        #: every composite's latency observed in _on_complete.
+        self.metrics = CompositorMetrics(self.counts, self.current, tuple(key for key, _ in HOPS))
 
     # --- runs ---------------------------------------------------------------------------------
     @property
@@ -159,6 +168,8 @@ class Compositor:
         run.gatherer.on_complete = lambda frame: self._on_complete(run, frame)
         if run_id:
             self._open_directory(run)
+        with self._lock:
+            self._live.append(run)
         return run
 
     def _open_directory(self, run: _Run, name: str = "") -> None:
@@ -193,6 +204,7 @@ class Compositor:
             elif frame.run_id != run.run_id or run.ended:
                 log.info("run %s follows run %s", frame.run_id, run.run_id)
                 self._run = self._new_run(frame.run_id)
+                self._fold(run)
                 if not run.ended:
                     # The host restarted without ending its stream: finalise on a thread, so
                     # the new run's first frames are not held up by the old recorder.
@@ -233,6 +245,7 @@ class Compositor:
             run.recorder.close()
         with self._lock:
             run.ended = True
+            self._fold(run)
         doc = self._report(run)
         if run.directory is not None:
             _write_json(run.directory / "report.json", doc)
@@ -245,6 +258,30 @@ class Compositor:
         log.info("run %s over: %d complete, incomplete %s; %s", run.run_id, doc["frames_complete"],
                  doc["frames_incomplete"], wire_summary(doc["wire"]))
         return doc
+
+    def _fold(self, run: _Run) -> None:
+        """Add a run's counts to the totals once it is over and no longer current: nothing
+        reaches it then (lock held)."""
+        if run.ended and run is not self._run and run in self._live:
+            self._live.remove(run)
+            self._folded.update(_run_counts(run))
+
+    def counts(self) -> Counter[CountKey]:
+        """Every run's counts (metrics.COUNTERS), summed over the compositor's life: the runs
+        folded and the live ones; they only grow."""
+        with self._lock:
+            total = Counter(self._folded)
+            for run in self._live:
+                total.update(_run_counts(run))
+            return total
+
+    def current(self) -> dict:
+        """The current run's id, open frames and the bytes they hold."""
+        with self._lock:
+            run = self._run
+        gathered = run.gatherer.counters()
+        return {"run_id": run.run_id, "frames_pending": gathered["frames_pending"],
+                "pending_bytes": gathered["pending_bytes"]}
 
     def refuse(self, cause: str, message: str) -> None:
         """Count a request refused before it reached the gatherer (add_service: malformed bytes,
@@ -262,7 +299,8 @@ class Compositor:
             return
         with self._lock:
             run.stitched["srgb8" if composite.rgb.dtype.itemsize == 1 else "half"] += 1
-        run.timing.add(composite)
+        figures = run.timing.add(composite)
+        self.metrics.observe(figures.latency, figures.hops, figures.interval)
         if run.recorder is not None:
             run.recorder.offer(composite)
         self.watchers.publish(composite)
@@ -319,6 +357,13 @@ class Compositor:
         if run.directory is not None:
             _write_json(run.directory / "report.json", doc)
         return doc
+
+
+def _run_counts(run: _Run) -> Counter[CountKey]:
+    """A run's counts for the metrics: its gatherer's, stitcher's and recorder's."""
+    recorded = run.recorder.snapshot() if run.recorder is not None else RecorderCounts()
+    return run_counts(run.gatherer.counters(), stitch_errors=run.stitch_errors, composites=run.stitched,
+                      written=recorded.written, not_recorded=recorded.not_recorded, write_errors=recorded.errors)
 
 
 def wire_summary(wire: dict) -> str:
@@ -501,23 +546,37 @@ def _cancel_on_stop(stream: grpc.Future, stop: threading.Event, done: threading.
 
 def serve(compositor: Compositor, address: str, host_address: str, stop: threading.Event, *,
           once: bool = False, grace_s: float = 5.0, security: Security | None = None,
-          max_receive_bytes: int = MAX_MESSAGE_BYTES) -> dict:
+          max_receive_bytes: int = MAX_MESSAGE_BYTES, metrics_address: str | None = None) -> dict:
     """Serve the compositor on address and follow the host at host_address; returns the last
     run's report.
 
     With once, the compositor finishes when the host's run ends; otherwise it follows run after
     run until stop is set (SIGTERM). Either way it finalises open frames, writes the run's
     report.json, reports NOT_SERVING and stops the server. max_receive_bytes: the largest
-    message taken (the largest channel image of the rig and its fields).
+    message taken (the largest channel image of the rig and its fields); metrics_address:
+    host:port of its Prometheus metrics (docs/metrics.md), None for none.
 
     Raises:
-        OSError: address cannot be bound, or plaintext off the loopback is not allowed.
+        OSError: address or metrics_address cannot be bound, or plaintext off the loopback is
+            not allowed.
     """
-    server = make_server(max_receive_bytes=max_receive_bytes)
-    add_service(server, CompositorServicer(compositor), compositor_pb2.DESCRIPTOR.services_by_name["CompositorService"],
-                refused=compositor.refuse)
-    health = add_health(server, [SERVICE], refused=compositor.refuse)
-    bind(server, address, security)
+    metrics = serve_metrics(compositor.metrics.registry, metrics_address)
+    try:
+        server = make_server(max_receive_bytes=max_receive_bytes)
+        add_service(server, CompositorServicer(compositor),
+                    compositor_pb2.DESCRIPTOR.services_by_name["CompositorService"], refused=compositor.refuse)
+        health = add_health(server, [SERVICE], refused=compositor.refuse)
+        bind(server, address, security)
+        return _run(compositor, server, health, address, host_address, stop, once=once, grace_s=grace_s,
+                    security=security)
+    finally:
+        if metrics is not None:
+            metrics.close()
+
+
+def _run(compositor: Compositor, server: grpc.Server, health, address: str, host_address: str,
+         stop: threading.Event, *, once: bool, grace_s: float, security: Security | None) -> dict:
+    """serve()'s life of the server: start, follow the host, finish, stop; the last run's report."""
     server.start()
     log.info("compositor listening on %s, writing to %s; wire %s, shared memory %s", address, compositor.out_dir,
              compositor.wire.format, "taken" if compositor.shared is not None else "refused (images inline)")

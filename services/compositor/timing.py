@@ -72,6 +72,21 @@ def chain(composite: Composite) -> dict[str, float] | None:
                         t.render_end, t.compositor_receive, composite.time))
 
 
+@dataclass(frozen=True)
+class Figures:
+    """What one composite took (TimingStats.add), seconds.
+
+    Attributes:
+        latency: control sample -> composite.
+        hops: the chain's hops (HOPS' keys), None when a worker did not stamp them.
+        interval: since the run's composite before it; None for the first.
+    """
+
+    latency: float
+    hops: dict[str, float] | None
+    interval: float | None
+
+
 class TimingStats:
     """Per-frame latency, hops and composite intervals of a run, summarised for the report."""
 
@@ -89,13 +104,16 @@ class TimingStats:
         self.host_frames: dict[str, Any] = {"composites": 0, "first": None, "last": None, "repeated": 0,
                                             "skipped": 0}
 
-    def add(self, composite: Composite) -> None:
-        """Account for one composite (composites arrive in frame order)."""
+    def add(self, composite: Composite) -> Figures:
+        """Account for one composite (composites arrive in frame order); returns its figures."""
         hops = chain(composite)
+        latency = composite.time - composite.frame.control_sample_time
+        interval = None
         with self._lock:
-            self.latencies.append(composite.time - composite.frame.control_sample_time)
+            self.latencies.append(latency)
             if self._last_time is not None:
-                self.intervals.append(composite.time - self._last_time)
+                interval = composite.time - self._last_time
+                self.intervals.append(interval)
             else:
                 self._first_time = composite.time
             self._last_time = composite.time
@@ -104,6 +122,7 @@ class TimingStats:
                 for key, seconds in hops.items():
                     self.hops[key].append(seconds)
                 self.critical[critical_image(composite.frame).channel] += 1
+        return Figures(latency, hops, interval)
 
     def _count_host_frame(self, number: int | None) -> None:
         """A composite of an external host's frame: repeated (the host did not keep pace and

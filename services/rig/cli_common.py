@@ -28,6 +28,36 @@ def add_rig_arguments(parser: argparse.ArgumentParser, *, bind: bool = True) -> 
     parser.add_argument("--verbose", action="store_true", help="log debug messages")
 
 
+def add_metrics_arguments(parser: argparse.ArgumentParser, *, rig_key: str) -> None:
+    """--metrics-port and --metrics-bind: where the process serves its Prometheus metrics
+    (docs/metrics.md); rig_key names the rig file's key the port defaults to."""
+    parser.add_argument("--metrics-port", type=port_or_off, default=None, metavar="PORT",
+                        help=f"serve Prometheus metrics at http://ADDR:PORT/metrics (docs/metrics.md); default: the "
+                             f"rig file's {rig_key}, none unless set; 0: none")
+    parser.add_argument("--metrics-bind", default=None, metavar="ADDR",
+                        help="the interface the metrics listen on (default 127.0.0.1, this machine only; e.g. "
+                             "0.0.0.0 for a Prometheus on another machine or container: plain HTTP, counters only)")
+
+
+def metrics_address_of(args: argparse.Namespace, rig_port: int) -> str | None:
+    """host:port of the process's metrics endpoint: --metrics-port over the rig file's port, on
+    --metrics-bind (127.0.0.1 by default); None when neither gives a port."""
+    from .metrics import metrics_address
+
+    return metrics_address(rig_port if args.metrics_port is None else args.metrics_port, args.metrics_bind)
+
+
+def port_or_off(text: str) -> int:
+    """argparse type: a TCP port in [1, 65535], or 0 for none."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port in [1, 65535], or 0 for none")
+    return value
+
+
 def load_rig_or_report(path: str | None, command: str) -> Rig | None:
     """The rig of --rig (or the default rig); None after printing why it cannot be used."""
     try:

@@ -231,6 +231,8 @@ class RigChannel:
     address: str
     #: The CIGI view id View Control and View Definition address this channel by.
     view_id: int = 0
+    #: The port of its worker's Prometheus metrics (docs/metrics.md); 0: none.
+    metrics_port: int = 0
 
     @property
     def name(self) -> str:
@@ -256,6 +258,11 @@ class Rig:
     #: The scene every process of the rig loads (``[scene] path``, made absolute against the
     #: rig file's folder); "": each command's own default. A --scene flag overrides it.
     scene: str = ""
+    #: The ports of the host's and the compositor's Prometheus metrics (``metrics_port`` of
+    #: ``[host]`` and ``[compositor]``; docs/metrics.md); 0: none. A --metrics-port flag
+    #: overrides them.
+    host_metrics_port: int = 0
+    compositor_metrics_port: int = 0
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -306,8 +313,8 @@ def load_rig(path: str | Path) -> Rig:
 
 
 _CHANNEL_KEYS = {"name", "address", "yaw_deg", "pitch_deg", "roll_deg", "left_deg", "right_deg",
-                 "bottom_deg", "top_deg", "width", "height", "view_id"}
-_OPTIONAL = {"yaw_deg", "pitch_deg", "roll_deg", "view_id"}
+                 "bottom_deg", "top_deg", "width", "height", "view_id", "metrics_port"}
+_OPTIONAL = {"yaw_deg", "pitch_deg", "roll_deg", "view_id", "metrics_port"}
 
 
 def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
@@ -324,7 +331,9 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
     except ValueError as exc:
         raise RigError(f"{source}: {exc}") from None
     addresses = {}
-    for section, known in (("host", ("address",)), ("compositor", ("address", "wire", "shared_memory"))):
+    metrics = {}
+    for section, known in (("host", ("address", "metrics_port")),
+                           ("compositor", ("address", "wire", "shared_memory", "metrics_port"))):
         table = doc.get(section)
         if not isinstance(table, dict) or "address" not in table:
             raise fail(section, "missing table with an 'address' key")
@@ -332,6 +341,7 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
             if key not in known:
                 raise fail(f"{section}.{key}", f"unknown key (known: {', '.join(known)})")
         addresses[section] = _address(table["address"], f"{section}.address", fail)
+        metrics[section] = _metrics_port(table, section, fail)
     wire = _wire(doc["compositor"], fail)
     chans = doc.get("channels")
     if not isinstance(chans, list) or not chans:
@@ -383,11 +393,19 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
             raise fail(f"{where}.view_id", f"{view_id!r} is not a whole number in [0, 65535]")
         if view_id in {c.view_id for c in out}:
             raise fail(f"{where}.view_id", f"{view_id} is used twice")
-        out.append(RigChannel(spec, _address(ch["address"], f"{where}.address", fail), view_id))
-    # Two services on one address would fail to bind, or worse, answer for each other.
+        out.append(RigChannel(spec, _address(ch["address"], f"{where}.address", fail), view_id,
+                              _metrics_port(ch, where, fail)))
+    # Two services on one address would fail to bind, or worse, answer for each other. A
+    # metrics port is taken on the machine of its service's address.
     seen = {addresses["host"]: "host.address"}
-    for where, address in [("compositor.address", addresses["compositor"])] + \
-            [(f"channels[{i}].address", c.address) for i, c in enumerate(out)]:
+    listens = [("compositor.address", addresses["compositor"])] + \
+        [(f"channels[{i}].address", c.address) for i, c in enumerate(out)]
+    for where, address, port in [("host", addresses["host"], metrics["host"]),
+                                 ("compositor", addresses["compositor"], metrics["compositor"])] + \
+            [(f"channels[{i}]", c.address, c.metrics_port) for i, c in enumerate(out)]:
+        if port:
+            listens.append((f"{where}.metrics_port", f"{address.rpartition(':')[0]}:{port}"))
+    for where, address in listens:
         if address in seen:
             raise fail(where, f"{address!r} is already used by {seen[address]}")
         seen[address] = where
@@ -409,7 +427,15 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
     cigi = _cigi(doc, tuple(c.name for c in out), fail)
     scene = _scene(doc.get("scene", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
     return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi, wire,
-               _simhost(doc, fail), scene)
+               _simhost(doc, fail), scene, metrics["host"], metrics["compositor"])
+
+
+def _metrics_port(table: dict[str, Any], where: str, fail) -> int:
+    """The table's optional metrics_port (docs/metrics.md); 0 without one."""
+    port = table.get("metrics_port", 0)
+    if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+        raise fail(f"{where}.metrics_port", f"{port!r} is not a port in [1, 65535], or 0 for none")
+    return port
 
 
 def scene_path(flag: str | None, rig: Rig, default: str | Path) -> str:
@@ -620,11 +646,16 @@ def _address(value: Any, where: str, fail) -> str:
 def rig_toml(rig: Rig) -> str:
     """A rig file for rig (the inverse of parse_rig)."""
     compositor = f'[compositor]\naddress = "{rig.compositor_address}"\n'
+    if rig.compositor_metrics_port:
+        compositor += f"metrics_port = {rig.compositor_metrics_port}\n"
     if rig.wire.format != WireSpec().format:
         compositor += f"wire = {_toml_value(rig.wire.format)}\n"
     if rig.wire.shared_memory != WireSpec().shared_memory:
         compositor += f"shared_memory = {_toml_value(rig.wire.shared_memory)}\n"
-    lines = [f'[host]\naddress = "{rig.host_address}"\n', compositor]
+    host = f'[host]\naddress = "{rig.host_address}"\n'
+    if rig.host_metrics_port:
+        host += f"metrics_port = {rig.host_metrics_port}\n"
+    lines = [host, compositor]
     changed = {k: v for k, v in rig.render.to_mapping().items() if getattr(RenderOptions(), k) != v}
     if changed:
         lines.append("[render]\n" + "".join(f"{k} = {_toml_value(v)}\n" for k, v in changed.items()))
@@ -643,7 +674,8 @@ def rig_toml(rig: Rig) -> str:
             f"yaw_deg = {s.yaw_deg!r}\npitch_deg = {s.pitch_deg!r}\nroll_deg = {s.roll_deg!r}\n"
             f"left_deg = {s.left_deg!r}\nright_deg = {s.right_deg!r}\n"
             f"bottom_deg = {s.bottom_deg!r}\ntop_deg = {s.top_deg!r}\n"
-            f"width = {s.width}\nheight = {s.height}\nview_id = {ch.view_id}\n")
+            f"width = {s.width}\nheight = {s.height}\nview_id = {ch.view_id}\n"
+            + (f"metrics_port = {ch.metrics_port}\n" if ch.metrics_port else ""))
     return "\n".join(lines)
 
 

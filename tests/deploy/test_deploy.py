@@ -1,6 +1,7 @@
 """deploy/ against the code: the command lines the compose file, the Kubernetes manifests and the
 systemd units run parse with the real `ig` parser, the rig files they mount load and are not
-refused by the plaintext rule, and every port, probe and replica count agrees with the rig file.
+refused by the plaintext rule, and every port, probe and replica count agrees with the rig file;
+every port Prometheus scrapes (deploy/prometheus/) is a metrics port a service serves and exposes.
 
 A port changed in a rig file, or a flag renamed in the CLI, fails here until deploy/ follows.
 """
@@ -23,6 +24,7 @@ import pytest
 import yaml
 
 from services.cli import build_parser
+from services.rig.cli_common import metrics_address_of
 from services.rig.grpc_util import is_loopback
 from services.rig.rigfile import Rig, load_rig, port_of
 
@@ -32,6 +34,7 @@ RIGS = DEPLOY / "rigs"
 DOCKER = DEPLOY / "docker"
 K8S = DEPLOY / "k8s"
 SYSTEMD = DEPLOY / "systemd"
+PROMETHEUS = DEPLOY / "prometheus"
 
 #: Where every deployment mounts the rig file.
 RIG_PATH = "/etc/ig/rig.toml"
@@ -84,6 +87,26 @@ def address_of(args: argparse.Namespace, rig: Rig) -> str:
         assert 0 <= args.channel_index < len(rig.channels), f"--channel-index {args.channel_index} out of the rig"
         return rig.channels[args.channel_index].address
     return rig.channel(args.channel).address
+
+
+def metrics_of(args: argparse.Namespace, rig: Rig) -> str | None:
+    """host:port the metrics of an `ig host|compositor|worker` command line listen on (None: none)."""
+    if args.command == "host":
+        port = rig.host_metrics_port
+    elif args.command == "compositor":
+        port = rig.compositor_metrics_port
+    else:
+        port = next(c for c in rig.channels if c.address == address_of(args, rig)).metrics_port
+    return metrics_address_of(args, port)
+
+
+def assert_scrapable(args: argparse.Namespace, rig: Rig, where: str) -> int:
+    """The port of a service's metrics, which a Prometheus in another container or pod reaches;
+    returns it."""
+    metrics = metrics_of(args, rig)
+    assert metrics is not None, f"{where}: no metrics port (the rig file's metrics_port or --metrics-port)"
+    assert args.metrics_bind == "0.0.0.0", f"{where}: metrics on the loopback only, out of Prometheus's reach"
+    return port_of(metrics)
 
 
 def channel_of(args: argparse.Namespace, rig: Rig) -> str:
@@ -155,6 +178,8 @@ def test_compose_services_match_the_rig():
     counts = dict.fromkeys(SERVICES, 0)
     rig_path = None
     for name, svc in compose["services"].items():
+        if svc.get("image") != "ig-rig:latest":
+            continue  # Prometheus (test_compose_prometheus_scrapes_every_service)
         args = svc["command"]
         parsed = parse_ig(args, f"compose.yaml: {name}")
         path = _mounted_rig(svc["volumes"], DOCKER)
@@ -172,7 +197,9 @@ def test_compose_services_match_the_rig():
         assert_not_refused(rig, [parsed.bind])
         address = address_of(parsed, rig)
         assert address.rpartition(":")[0] == name, f"{name}: its rig address is {address}"
-        assert [int(p) for p in svc.get("expose", [])] == [port_of(address)], f"{name}: expose vs rig {address}"
+        metrics = assert_scrapable(parsed, rig, f"compose.yaml: {name}")
+        assert [int(p) for p in svc.get("expose", [])] == [port_of(address), metrics], \
+            f"{name}: expose vs rig {address} and metrics port {metrics}"
         # The health check: ig-health, which asks grpc.health.v1.Health at the port of the
         # service's own command line.
         check = svc["healthcheck"]
@@ -192,6 +219,30 @@ def test_compose_services_match_the_rig():
     kernels = {v.split(":")[0] for s in compose["services"].values() for v in s["volumes"]
                if v.split(":")[1] == "/var/cache/ig"}
     assert kernels <= set(compose["volumes"]) and len(kernels) == 1, "one shared kernel cache volume"
+
+
+def test_compose_prometheus_scrapes_every_service():
+    compose = _compose()
+    exposed = {}
+    for name, svc in compose["services"].items():
+        if svc.get("image") == "ig-rig:latest" and svc["command"][0] != "compile":
+            parsed = parse_ig(svc["command"], name)
+            rig = load_rig(_mounted_rig(svc["volumes"], DOCKER))
+            exposed[name] = (port_of(metrics_of(parsed, rig)), [int(p) for p in svc["expose"]])
+    prometheus = compose["services"]["prometheus"]
+    assert prometheus["profiles"] == ["monitoring"], "Prometheus only when asked for"
+    assert "rig" in prometheus["networks"], "Prometheus reaches the services on the rig's network"
+    assert all(p.startswith("127.0.0.1:") for p in prometheus["ports"]), "its UI on the loopback only"
+    config = [v.split(":")[0] for v in prometheus["volumes"] if v.split(":")[1] == "/etc/prometheus/prometheus.yml"]
+    assert [(DOCKER / c).resolve() for c in config] == [PROMETHEUS / "compose.yml"]
+    targets = [t for job in yaml.safe_load((PROMETHEUS / "compose.yml").read_text())["scrape_configs"]
+               for group in job["static_configs"] for t in group["targets"]]
+    for target in targets:
+        host, _, port = target.rpartition(":")
+        assert host in exposed, f"prometheus/compose.yml: {target}: no such service"
+        assert int(port) == exposed[host][0] and int(port) in exposed[host][1], \
+            f"prometheus/compose.yml: {target}: {host} serves its metrics at {exposed[host][0]}"
+    assert sorted(t.rpartition(":")[0] for t in targets) == sorted(exposed), "every service scraped, once"
 
 
 def test_compose_config_validates():
@@ -301,7 +352,9 @@ def test_k8s_workloads_match_the_rig():
         rig_mounts = [m for m in container["volumeMounts"] if m["mountPath"] == RIG_PATH]
         assert rig_mounts and volumes[rig_mounts[0]["name"]]["configMap"]["name"] == configmap
         assert rig_mounts[0]["subPath"] == "rig.toml"
-        ports = [p["containerPort"] for p in container["ports"]]
+        ports = {p["name"]: p["containerPort"] for p in container["ports"]}
+        assert len(ports) == len(container["ports"]) == 2, f"{name}: one grpc and one metrics port"
+        annotations = w["spec"]["template"]["metadata"].get("annotations", {})
         addresses = []
         for i, args in enumerate(_commands(container, ordinals)):
             parsed = parse_ig(args, f"k8s {name}")
@@ -310,11 +363,16 @@ def test_k8s_workloads_match_the_rig():
             seen[parsed.command] += 1
             address = address_of(parsed, rig)
             addresses.append(address)
-            assert ports == [port_of(address)], f"{name}: containerPort {ports} vs rig {address}"
+            assert ports["grpc"] == port_of(address), f"{name}: containerPort {ports} vs rig {address}"
+            metrics = assert_scrapable(parsed, rig, f"k8s {name}")
+            assert ports["metrics"] == metrics, f"{name}: containerPort {ports} vs metrics port {metrics}"
+            # What deploy/prometheus/k8s.yml scrapes.
+            assert annotations == {"prometheus.io/scrape": "true", "prometheus.io/port": str(metrics),
+                                   "prometheus.io/path": "/metrics"}, f"{name}: annotations {annotations}"
             if sts:
                 channels.append(channel_of(parsed, rig))
                 assert address.rpartition(":")[0] == f"{name}-{i}.{w['spec']['serviceName']}.{ns}.svc"
-        _probes(container, ports[0], rig)
+        _probes(container, ports["grpc"], rig)
         # The Service the rig address names selects these pods, at the same port.
         host = addresses[0].rpartition(":")[0].split(".")
         svc_name = host[1] if sts else host[0]
@@ -322,7 +380,7 @@ def test_k8s_workloads_match_the_rig():
         assert svc["metadata"]["namespace"] == ns and host[-2:] == [ns, "svc"]
         assert _matches(svc["spec"]["selector"], labels)
         assert [(p["port"], p.get("targetPort", p["port"])) for p in svc["spec"]["ports"]] == \
-            [(ports[0], ports[0])], f"Service {svc_name}"
+            [(ports["grpc"], ports["grpc"])], f"Service {svc_name}"
         # A worker compiling its kernels is not ready, and must still be found by its name.
         assert svc["spec"].get("publishNotReadyAddresses") is True, f"Service {svc_name}"
         if rig.tls.enabled:
@@ -334,6 +392,21 @@ def test_k8s_workloads_match_the_rig():
             assert cpu == container["resources"]["limits"]["cpu"] and str(cpu).isdigit(), "whole cores"
     assert seen == {"host": 1, "compositor": 1, "worker": len(rig.channels)}
     assert channels == list(rig.channel_names)
+
+
+def test_k8s_prometheus_scrapes_the_annotated_pods_of_the_rig():
+    namespaces = {d["metadata"]["namespace"] for d in _manifests() if d["kind"] in ("Deployment", "StatefulSet")}
+    [job] = yaml.safe_load((PROMETHEUS / "k8s.yml").read_text())["scrape_configs"]
+    [sd] = job["kubernetes_sd_configs"]
+    assert sd["role"] == "pod" and set(sd["namespaces"]["names"]) == namespaces
+    relabel = {tuple(r.get("source_labels", [])): r for r in job["relabel_configs"]}
+    scrape = relabel[("__meta_kubernetes_pod_annotation_prometheus_io_scrape",)]
+    assert (scrape["action"], scrape["regex"]) == ("keep", "true")
+    address = relabel[("__meta_kubernetes_pod_ip", "__meta_kubernetes_pod_annotation_prometheus_io_port")]
+    assert address["target_label"] == "__address__"
+    assert re.fullmatch(address["regex"], "10.1.2.3;50261") and address["replacement"] == "$1:$2"
+    path = relabel[("__meta_kubernetes_pod_annotation_prometheus_io_path",)]
+    assert path["target_label"] == "__metrics_path__"
 
 
 def test_kustomization_lists_every_manifest():

@@ -92,3 +92,19 @@ def test_a_replay_that_cannot_fly_exits_2_before_anything_starts(tmp_path, capsy
     assert main(["demo", *argv, "--scene", "airfield", "--out", str(out)]) == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_the_local_rig_moves_the_metrics_ports_set_to_free_ones_too():
+    from dataclasses import replace
+
+    from services.demo import local_rig
+    from services.rig.rigfile import load_rig
+
+    rig = load_rig(default_rig_path())
+    assert local_rig(rig).host_metrics_port == 0  # none set, none made
+    chans = tuple(replace(ch, metrics_port=50261 + i) for i, ch in enumerate(rig.channels))
+    local = local_rig(replace(rig, host_metrics_port=50250, compositor_metrics_port=50251, channels=chans))
+    ports = [local.host_metrics_port, local.compositor_metrics_port, *(ch.metrics_port for ch in local.channels)]
+    assert all(ports)  # free ports of this machine, as the addresses
+    assert [ch.metrics_port for ch in local_rig(replace(rig, channels=chans[:1] + rig.channels[1:])).channels][1:] \
+        == [0, 0]

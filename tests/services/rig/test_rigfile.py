@@ -125,3 +125,42 @@ def test_the_wire_keys_default_to_srgb8_in_shared_memory_and_survive_rig_toml():
     assert rig.wire == WireSpec("half", False)
     assert parse_rig(tomllib.loads(rig_toml(rig))).wire == rig.wire
     assert "wire" not in rig_toml(parse_rig(doc()))  # defaults are left out
+
+
+def test_metrics_ports_default_to_none_and_survive_rig_toml():
+    rig = parse_rig(doc())
+    assert (rig.host_metrics_port, rig.compositor_metrics_port, rig.channels[0].metrics_port) == (0, 0, 0)
+    assert "metrics_port" not in rig_toml(rig)
+    d = doc()
+    d["host"]["metrics_port"] = 9150
+    d["compositor"]["metrics_port"] = 9151
+    d["channels"][0]["metrics_port"] = 9161
+    rig = parse_rig(d)
+    assert (rig.host_metrics_port, rig.compositor_metrics_port, rig.channels[0].metrics_port) == (9150, 9151, 9161)
+    assert parse_rig(tomllib.loads(rig_toml(rig))) == rig
+
+
+@pytest.mark.parametrize("mutate,pattern", [
+    (lambda d: d["host"].update(metrics_port=70000),
+     r"host.metrics_port: 70000 is not a port in \[1, 65535\], or 0 for none"),
+    (lambda d: d["channels"][0].update(metrics_port="9161"), r"channels\[0\].metrics_port: '9161' is not a port"),
+    (lambda d: d["compositor"].update(metrics_port=True), r"compositor.metrics_port: True is not a port"),
+    # A metrics port is taken on the machine of its service: not another service's port there.
+    (lambda d: d["host"].update(metrics_port=2),
+     r"host.metrics_port: '127.0.0.1:2' is already used by compositor.address"),
+    (lambda d: (d["host"].update(metrics_port=9000), d["channels"][0].update(metrics_port=9000)),
+     r"channels\[0\].metrics_port: '127.0.0.1:9000' is already used by host.metrics_port"),
+])
+def test_bad_metrics_ports_name_key_and_value(mutate, pattern):
+    d = doc()
+    mutate(d)
+    with pytest.raises(RigError, match=pattern):
+        parse_rig(d)
+
+
+def test_metrics_ports_of_services_on_other_machines_may_be_equal():
+    d = doc()
+    d["channels"].append(dict(d["channels"][0], name="d", address="10.0.0.12:3"))
+    d["channels"][0].update(address="10.0.0.11:3", metrics_port=9161)
+    d["channels"][1]["metrics_port"] = 9161
+    assert [c.metrics_port for c in parse_rig(d).channels] == [9161, 9161]
