@@ -411,23 +411,25 @@ def build_track(raw: RawLog, *, origin: tuple[float, float, float] | None = None
 def _misdated(times: np.ndarray, idx: np.ndarray) -> list[int]:
     """Records (indices into times, among idx: records with finite times, in file order) out
     of time order in the file (_out_of_order) whose time is also far from the median time of
-    the MISDATED_WINDOW records around them in the file, in runs of at most MISDATED_RUN
+    every window of records around them in the file, in runs of at most MISDATED_RUN
     consecutive records.
 
     Such a record sits where its position belongs (between its file neighbours) under a wrong
     time: sorted by time it would land far from them, often beyond the log's end where no
     speed is impossible over the long interval, and stretch the replay by the error. The
-    window is centred on the record (narrower near either end of the file, so that it stays
-    centred), and the median of a centred window of a file in time order is the record itself,
-    whatever pauses the logger made: a log in order never has a misdated record, and a few
-    wrong times in a window do not move the median of the rest far. Far means more than the
-    gap threshold plus half a window of median intervals (what the wrong times can move the
-    median by). The first and last MISDATED_EDGE records have too narrow a window to be judged
-    so (a window of three holds as many wrong times as right ones); the motion check still
-    judges them by their positions. A longer
-    run of far records is a block of the log written out of order (logs concatenated in the
-    wrong order): it is only sorted. A far record whose time agrees with a file neighbour that
-    is not far stays (a misdated record disagrees with both sides).
+    windows are the one centred on the record (narrower near either end of the file, so that
+    it stays centred) and every run of MISDATED_WINDOW consecutive records that holds it (the
+    whole file when shorter), whose median is expected as many median intervals from the
+    record's time as the record is from the window's centre. The median of a centred window
+    of a file in time order is the record itself, whatever pauses the logger made: a log in
+    order never has a misdated record, and a few wrong times in a window do not move the
+    median of the rest far. Far means more than the gap threshold plus half a window of
+    median intervals (what the wrong times can move the median by). The first and last
+    MISDATED_EDGE records have too narrow a centred window to be judged so (a window of three
+    holds as many wrong times as right ones); the motion check still judges them by their
+    positions. A longer run of far records is a block of the log written out of order (logs
+    concatenated in the wrong order): it is only sorted. A far record whose time agrees with
+    a file neighbour that is not far stays (a misdated record disagrees with both sides).
     """
     t = times[idx]
     n = len(t)
@@ -448,6 +450,25 @@ def _misdated(times: np.ndarray, idx: np.ndarray) -> list[int]:
     late = np.zeros(n, bool)
     late[_out_of_order(t)] = True
     far = (np.abs(t - centre) > tolerance) & (reach >= MISDATED_EDGE) & late
+    # A misdated record is a wrong time among many right ones: then every window that holds it
+    # is mostly right times and disagrees with it. A good record near an end of the file has a
+    # narrow centred window that three garbage records outvote (and, with a garbage record on
+    # either side, no neighbour vouches for it); a full window reaching into the log is mostly
+    # good records, and agrees with it. Outvoting a good record takes wrong times (on one side
+    # of its time) in most of every window that holds it: six garbage records among the ten
+    # after it, and among the ten before it unless it is that near the file's start (likewise
+    # at the end). The record is off the centre of such a window: the median is expected that
+    # many median intervals from its time, so that a window off centre is no more lenient
+    # than the centred one (a clock step of a few intervals still lands far).
+    size = min(MISDATED_WINDOW, n)
+    medians = np.median(np.lib.stride_tricks.sliding_window_view(t, size), axis=1)
+    # Per record, the medians of the full windows holding it: column j is the window that
+    # starts size - 1 - j records before it (NaN where that window would leave the file),
+    # whose centre is (size - 1) / 2 - j records before it.
+    held = np.lib.stride_tricks.sliding_window_view(
+        np.concatenate([np.full(size - 1, np.nan), medians, np.full(size - 1, np.nan)]), size)
+    expected = held + ((size - 1) / 2 - np.arange(size)) * step
+    far &= ~(np.abs(t[:, None] - expected) <= tolerance).any(axis=1)
     # A record whose time agrees with a file neighbour's that is not itself far belongs with
     # it: a misdated record disagrees with the records on both sides (near an end of the file
     # a few wrong times can outnumber the right ones in its narrow window).

@@ -211,6 +211,19 @@ def test_the_duplicate_that_fits_the_neighbours_is_kept_wherever_it_is_in_the_fi
         assert track.problems["duplicate"] == 1 and track.sample(2.0).position[0] == pytest.approx(100.0)
 
 
+@pytest.mark.parametrize("k", [2, 8, 50, 97])
+@pytest.mark.parametrize("step_s", [12.5, -12.5])
+def test_a_small_clock_step_is_misdated_wherever_it_is_in_the_file(k, step_s):
+    # Just past the tolerance (5 s gap threshold + 5 intervals): a window of eleven records
+    # that holds the record off its centre (near an end, or on the side its time went) has its
+    # median nearer the wrong time by the offset, and must not vouch for it.
+    t = np.arange(100.0)
+    t[k] += step_s
+    track = build_track(RawLog(times=list(t), coords=[(20.0 * x, 0.0, 500.0) for x in range(100)],
+                               geodetic=False))
+    assert track.problems["misdated"] == 1 and len(track.t_s) == 99
+
+
 def test_good_records_around_a_bad_one_are_kept():
     t = np.arange(30.0)
     pos = np.stack([80.0 * t, 10.0 * np.sin(t / 3.0), 500.0 + t], axis=1)
@@ -298,6 +311,19 @@ def test_csv_garbage_never_crashes_and_never_costs_good_records(garbage):
     assert_good_records_kept(track, tol_m=2.0)
 
 
+def test_csv_garbage_around_the_first_good_record_cannot_outvote_it(tmp_path):
+    # The CSV form of the IGC case below (the cleaning is the same): a garbage row at t=0
+    # written twice before the first good record and once after it made the first good
+    # record's narrow centred window mostly garbage, and it was dropped as misdated.
+    junk = "0.0000,0.0000,0.0000,0.0000"
+    lines = csv_cells(good_rows())
+    for at in (1, 0, 0):
+        lines.insert(at, junk)
+    track, _ = load_track(write_lines(tmp_path / "g.csv", lines))
+    assert_good_records_kept(track, tol_m=2.0)
+    assert track.problems["misdated"] == 0
+
+
 IGC_GARBAGE = st.one_of(
     st.text(max_size=40).map(lambda s: "B" + s),
     st.builds(lambda t, lat, lon, h: igc_b(t, lat, lon, h) + "000", st.integers(0, 86399),
@@ -344,6 +370,27 @@ def test_a_record_agreeing_with_its_neighbour_is_not_misdated_among_wrong_times(
     times = track.start_time + track.t_s
     for row in GOOD:
         assert np.min(np.abs(times - (12 * 3600 + T0 + row[0]))) < 1e-6
+
+
+def test_garbage_around_the_first_good_record_cannot_outvote_it(tmp_path):
+    # Found by the fuzz test above: one garbage fix at 00:00:00 (0 degrees N, 0 E) written
+    # three times, twice before the first good fix and once between it and the second. The
+    # first good fix is third in the file, so its centred window was the first five records,
+    # three of them garbage: their time was the window's median and the good fix was "far";
+    # its file neighbours are both garbage, so none vouched for it, and the longest run in
+    # time order, a tie between the three zeros and the log after it and two zeros and the
+    # whole log, was taken as the former: out of order, it was dropped as misdated. A window
+    # of eleven records that holds it (the first eleven) is mostly good records.
+    junk = igc_b(0, 0.0, 0.0, 0) + "000"
+    path = write_igc(tmp_path / "f.igc", GOOD, start_s=int(12 * 3600 + T0),
+                     extra=[(5, junk), (4, junk), (4, junk)])
+    assert path.read_text().splitlines()[4:9] == [junk, junk, igc_b(12 * 3600 + T0, *GOOD[0][1:4]) + "000",
+                                                   junk, igc_b(12 * 3600 + T0 + 1, *GOOD[1][1:4]) + "000"]
+    track, _ = load_track(path)
+    times = track.start_time + track.t_s
+    for row in GOOD:
+        assert np.min(np.abs(times - (12 * 3600 + T0 + row[0]))) < 1e-6
+    assert track.problems["misdated"] == 0 and track.problems["duplicate"] == 2
 
 
 @FUZZ
