@@ -109,9 +109,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fdm", default=None, metavar="MODEL",
                         help="the flight model, flown by --controls, or without them by a scripted take-off "
                              "from the bundled runway: " + "; ".join(_fdm_help()) + " (docs/host-flight-model.md)")
+    parser.add_argument("--end-after-silence", type=positive, default=None, metavar="S",
+                        help="with --cigi: end the run once the CIGI host, having sent at least one message, "
+                             "has sent nothing for S seconds (default: run until SIGTERM or --duration)")
     parser.add_argument("--stale-after", type=positive, default=None, metavar="S",
                         help="flag a control source stale after this many seconds without good input "
                              "(default 0.5; a URL's stale_after= overrides it)")
+
+
+def end_when_silent(session, silence_s: float, stop: threading.Event, poll_s: float = 0.1) -> None:
+    """Set stop once session.silent_for() (seconds since the CIGI host's last message; None
+    before its first) exceeds silence_s; return when stop is set either way."""
+    while not stop.wait(poll_s):
+        silent = session.silent_for()
+        if silent is not None and silent > silence_s:
+            log.info("the CIGI host has sent nothing for %.1f s (--end-after-silence %g): ending the run",
+                     silent, silence_s)
+            stop.set()
+            return
 
 
 def _fdm_help() -> list[str]:
@@ -144,7 +159,8 @@ def run(args: argparse.Namespace) -> int:
             ("--start", args.start != 0.0), ("--loop", args.loop), ("--replay-origin", args.replay_origin))),
             ("--controls", bool(args.controls), (("--stale-after", args.stale_after is not None),)),
             ("--cigi", args.cigi is not None, (("--cigi-host-port", args.cigi_host_port is not None),
-                                               ("--cigi-mode", args.cigi_mode is not None))),
+                                               ("--cigi-mode", args.cigi_mode is not None),
+                                               ("--end-after-silence", args.end_after_silence is not None))),
             ("--simhost", args.simhost is not None, (("--simhost-timing", args.simhost_timing is not None),))):
         misplaced = [flag for flag, used in flags if used]
         if misplaced and not given:
@@ -190,6 +206,11 @@ def run(args: argparse.Namespace) -> int:
             return EXIT_BAD_INPUT
         stop = threading.Event()
         stop_on_signals(stop)
+        if args.end_after_silence is not None:
+            # In sync mode the CIGI host drives every frame: once it has gone, --duration is never
+            # reached and the run would wait for SIGTERM.
+            threading.Thread(target=end_when_silent, args=(eyepoints.session, args.end_after_silence, stop),
+                             name="cigi-silence", daemon=True).start()
         try:
             serve(publisher, bind_address(rig.host_address, args.bind), stop, eyepoints=eyepoints,
                   security=security, metrics_address=metrics_address_of(args, rig.host_metrics_port))

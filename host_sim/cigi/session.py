@@ -300,6 +300,11 @@ class CigiSession:
     def ig_frame(self) -> int:
         return self._ig_frame
 
+    def silent_for(self) -> float | None:
+        """Seconds since the host's last message by the session's clock; None before its first."""
+        last = self._last_message_at
+        return None if last is None else self.clock() - last
+
     # -- applying a message -----------------------------------------------------------------
 
     def _apply(self, received: _Received) -> list[Job]:

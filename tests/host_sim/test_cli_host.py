@@ -20,6 +20,7 @@ def csv_log(tmp_path):
     (["--speed", "2"], "--speed only apply with --replay"),
     (["--loop", "--start", "1"], "--start, --loop only apply with --replay"),
     (["--stale-after", "1"], "--stale-after only apply with --controls"),
+    (["--end-after-silence", "2"], "--end-after-silence only apply with --cigi"),
     (["--controls", "bogus://x"], "bogus://x: unknown control source scheme"),
     (["--controls", "can://virtual/cli-test?bitrat=1"], "option 'bitrat' is not a CAN bus option"),
     (["--replay", "/nonexistent/flight.igc"], "no such file"),
@@ -77,3 +78,40 @@ def test_a_taken_cigi_port_exits_1(capsys):
         taken.bind(("127.0.0.1", 0))
         assert main(["host", "--cigi", f"udp://127.0.0.1:{taken.getsockname()[1]}", "--duration", "0"]) == 1
     assert "--cigi: cannot listen" in capsys.readouterr().err
+
+
+class _Silence:
+    """A CIGI session's silent_for(): None until the host's first message, then the given
+    seconds in turn (the last repeated)."""
+
+    def __init__(self, *values):
+        self.values = list(values)
+
+    def silent_for(self):
+        return self.values.pop(0) if len(self.values) > 1 else self.values[0]
+
+
+def test_the_run_ends_once_the_cigi_host_has_gone_silent():
+    import threading
+
+    from host_sim.cli_host import end_when_silent
+
+    stop = threading.Event()
+    # Nothing yet, then messages 0.1 and 1.5 s ago, then 2.5 s of silence: past the 2 s asked.
+    end_when_silent(_Silence(None, None, 0.1, 1.5, 2.5), 2.0, stop, poll_s=0.001)
+    assert stop.is_set()
+
+
+def test_a_cigi_host_that_never_spoke_does_not_end_the_run():
+    import threading
+
+    from host_sim.cli_host import end_when_silent
+
+    stop = threading.Event()
+    watcher = threading.Thread(target=end_when_silent, args=(_Silence(None), 0.01, stop, 0.001))
+    watcher.start()
+    watcher.join(0.2)
+    assert watcher.is_alive() and not stop.is_set()  # still waiting for a first message
+    stop.set()  # SIGTERM's way: the watcher returns
+    watcher.join(1.0)
+    assert not watcher.is_alive()

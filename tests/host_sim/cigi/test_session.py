@@ -127,6 +127,18 @@ def test_a_silent_host_is_reported_stale_and_its_last_eyepoint_held():
     assert not s.stale
 
 
+def test_silent_for_counts_from_the_hosts_last_message():
+    s, clock = session()
+    assert s.silent_for() is None  # the host has not spoken: nothing to count from
+    send(s, ig_control(1), ownship())
+    s.begin_frame()
+    clock.t += 2.5
+    assert s.silent_for() == pytest.approx(2.5)
+    send(s, ig_control(2), ownship())
+    s.begin_frame()
+    assert s.silent_for() == pytest.approx(0.0)
+
+
 def test_reset_mode_publishes_nothing_and_forgets_the_entities():
     s, _ = session()
     send(s, ig_control(1), ownship())
