@@ -83,6 +83,10 @@ class _Run:
     stitched: Counter[str] = field(default_factory=Counter)  # composites by format
     host_status: dict = field(default_factory=dict)
     ended: bool = False
+    # Claimed by the first of the callers that may end a run at once (the host's stream
+    # ending, SIGTERM's stop, a new run's first frame); the others wait for it to be done.
+    ending: bool = False
+    end_done: threading.Event = field(default_factory=threading.Event)
 
 
 class Compositor:
@@ -237,6 +241,20 @@ class Compositor:
             self._end(run, grace_s)
 
     def _end(self, run: _Run, grace_s: float) -> dict:
+        with self._lock:
+            first = not run.ending
+            run.ending = True
+        if not first:
+            # Another thread is ending it (writing report.json through the same temporary
+            # name: two writers raced there when SIGTERM came as the host's stream ended).
+            run.end_done.wait()
+            return self._report(run)
+        try:
+            return self._end_once(run, grace_s)
+        finally:
+            run.end_done.set()
+
+    def _end_once(self, run: _Run, grace_s: float) -> dict:
         deadline = time.monotonic() + grace_s
         while run.gatherer.pending and time.monotonic() < deadline:
             time.sleep(0.05)

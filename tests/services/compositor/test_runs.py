@@ -157,6 +157,43 @@ def test_end_run_writes_the_report_and_the_next_frame_starts_a_new_run(comp, tmp
     assert report["frames_complete"] == 1 and report["host"] == {}
 
 
+def test_a_run_ended_from_two_threads_at_once_is_ended_once(comp, tmp_path, monkeypatch):
+    # SIGTERM's stop and the host's stream ending both end the run: the two wrote report.json
+    # through one temporary name, and the second writer's rename found it gone (a traceback
+    # in the README's CIGI walkthrough). The first caller ends it; the other waits for it.
+    complete(comp, "one", 0)
+    ends = []
+    real_end, real_write = Compositor._end_once, server_module._write_json
+
+    def counted_end(self, run, grace_s):
+        ends.append(run.run_id)
+        return real_end(self, run, grace_s)
+
+    def slow_write(path, doc):
+        time.sleep(0.2)  # the other callers arrive while the first writes
+        real_write(path, doc)
+
+    monkeypatch.setattr(Compositor, "_end_once", counted_end)
+    monkeypatch.setattr(server_module, "_write_json", slow_write)
+    errors = []
+
+    def end():
+        try:
+            comp.end_run("one")
+        except Exception as exc:  # the test reports whatever a thread raised
+            errors.append(exc)
+
+    threads = [threading.Thread(target=end) for _ in range(2)]
+    for t in threads:
+        t.start()
+    comp.finish(grace_s=0.0)  # SIGTERM's path, at the same time
+    for t in threads:
+        t.join()
+    assert not errors
+    assert ends == ["one"]
+    assert json.loads((tmp_path / "runs" / "one" / "report.json").read_text())["frames_complete"] == 1
+
+
 def test_end_run_of_another_run_changes_nothing(comp, tmp_path):
     complete(comp, "one", 0)
     comp.end_run("other")
