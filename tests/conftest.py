@@ -35,3 +35,15 @@ def pytest_unconfigure(config):
         os.environ.pop("PYTHONPYCACHEPREFIX", None)
         shutil.rmtree(_PYCACHE, ignore_errors=True)
         _PYCACHE = None
+
+
+#: The test that compiles every kernel into a cold cache (tests/channel_worker/test_compile.py):
+#: run first, while the suite's own kernel cache is still as the session found it, so that on a
+#: cold one (a fresh clone, CI) its compile is the session's only one (cold_kernel_cache there).
+COLD_COMPILE = "test_compile.py::test_compile_jobs_fill_a_cold_cache_that_a_worker_then_loads_every_kernel_from"
+
+
+def pytest_collection_modifyitems(session, config, items):
+    first = [item for item in items if item.nodeid.endswith(COLD_COMPILE)]
+    if first:
+        items[:] = first + [item for item in items if item not in first]

@@ -365,8 +365,10 @@ class Compositor:
         # Runs before this one end first, so that runs_before lists them in the order they ran.
         for ender in self._enders:
             ender.join()
-        if not run.ended:
-            self._end(run, grace_s)
+        # Through _end even when the run is marked ended: another thread may still be writing
+        # its report.json, and _end waits for it (writing it here at the same time lost one
+        # writer's temporary file).
+        self._end(run, grace_s)
         self.watchers.close()
         self.finished.set()
         if self.shared is not None:
@@ -397,7 +399,8 @@ def wire_summary(wire: dict) -> str:
 def _write_json(path: Path, doc: dict) -> None:
     """Write doc to path through a temporary name, so a reader never sees half a report."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
+    # A temporary name of this writer's own: two writers of one report never share it.
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.{threading.get_ident()}.tmp")
     tmp.write_text(json.dumps(doc, indent=2) + "\n")
     tmp.replace(path)
 

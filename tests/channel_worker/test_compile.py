@@ -71,10 +71,29 @@ def _cache_with_the_bundled_terrain(cache: Path) -> Path:
     return cache
 
 
+def cold_kernel_cache(tmp_path: Path) -> tuple[dict[str, str], Path]:
+    """The environment of a compile into a cold kernel cache, and that cache's directory for
+    the sources as they are now (kernel_cache_dir).
+
+    The suite's own cache when it is cold (a fresh clone, CI, sources just changed: no kernel
+    and no compile marker for these sources yet), so that the one cold compile of the session
+    fills the cache every later test and rig loads from; compiled into a private one besides,
+    it was the suite's largest single cost (a second compile of every kernel: 100-240 s of
+    the 2-core VM). A warm suite cache gets a private empty one, as before. conftest.py runs
+    this test first, before any other test has compiled a kernel into the suite's cache."""
+    from channel_worker.pipeline.kernel_cache import kernel_cache_dir
+
+    shared = kernel_cache_dir()
+    if not any(shared.glob("*.nbi")) and not any(shared.glob("compiled-*.json")):
+        return dict(os.environ), shared
+    env = {**os.environ, "IG_CACHE_DIR": str(_cache_with_the_bundled_terrain(tmp_path / "cache"))}
+    return env, tmp_path / "cache" / "numba" / shared.name
+
+
 def test_compile_jobs_fill_a_cold_cache_that_a_worker_then_loads_every_kernel_from(tmp_path):
     # An empty kernel cache, as on a fresh clone: every kernel compiles, in three processes at
     # once (polygons, the terrain cast, the sky and clouds).
-    env = {**os.environ, "IG_CACHE_DIR": str(_cache_with_the_bundled_terrain(tmp_path / "cache"))}
+    env, kernels = cold_kernel_cache(tmp_path)
     scene = str(demo_scene_path())
     done = _ig(["compile", "--jobs", "2", "--scene", scene], env)
     assert done.returncode == 0, done.stdout + done.stderr
@@ -83,7 +102,7 @@ def test_compile_jobs_fill_a_cold_cache_that_a_worker_then_loads_every_kernel_fr
     # The groups rendered what render_frame renders: the check frame found every kernel cached.
     assert "note:" not in done.stderr, done.stderr
     assert f"[4/4] {cli_compile._label(CHECK)}: every kernel loaded from the cache" in out, out
-    index_files = {p: p.stat().st_mtime_ns for p in (tmp_path / "cache" / "numba").rglob("*.nbi")}
+    index_files = {p: p.stat().st_mtime_ns for p in kernels.rglob("*.nbi")}
     assert index_files
 
     warm = subprocess.run([sys.executable, "-c", _WARM_UP, scene], capture_output=True, text=True, cwd=ROOT,
@@ -93,10 +112,10 @@ def test_compile_jobs_fill_a_cold_cache_that_a_worker_then_loads_every_kernel_fr
     assert stats["misses"] == []
     assert stats["hits"] > 0
     # Nothing was saved again: every index is as the compile left it.
-    assert {p: p.stat().st_mtime_ns for p in (tmp_path / "cache" / "numba").rglob("*.nbi")} == index_files
+    assert {p: p.stat().st_mtime_ns for p in kernels.rglob("*.nbi")} == index_files
 
     # Compiled before for this request (its marker): no groups, the check frame loads everything.
-    assert len(list((tmp_path / "cache" / "numba").glob("*/compiled-*.json"))) == 1
+    assert len(list(kernels.glob("compiled-*.json"))) == 1
     again = _ig(["compile", "--jobs", "2", "--scene", scene], env)
     assert again.returncode == 0, again.stderr
     assert "compiled there before" in again.stdout and "[1/1]" in again.stdout
