@@ -15,6 +15,9 @@ hardware or programs, or runs until it is stopped) has, directly above its openi
 
     <!-- not run by the tests: REASON -->
 
+and its `ig` commands are only parsed, with `ig`'s own parser: their options must exist and
+their values be of the right kind.
+
 An untagged block that reads like commands (a line starting `ig COMMAND`, `make`, `python`,
 `.venv/bin/...`, `docker`, ...) fails: tag it ```sh, or ```text if it is a synopsis or a
 program's output. IG_DOC_BLOCKS=docs/metrics.md,README.md:222 runs marked blocks too (a file's,
@@ -23,6 +26,8 @@ or one by its file and fence line), for checking a long walkthrough by hand.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 import re
 import shlex
@@ -34,6 +39,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+
+from services.cli import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 SHELLS = {"sh", "bash", "shell", "console"}
@@ -140,6 +147,48 @@ def test_an_untagged_block_holds_no_commands():
         if not block.lang and command is not None:
             untagged.append(f"{block.where}: {command!r}: tag it ```sh, or ```text if it is a synopsis or output")
     assert not untagged, "\n".join(untagged)
+
+
+def ig_commands(script: str) -> list[list[str]]:
+    """The arguments of every `ig` command of a shell script, with the $VARIABLES it sets (and
+    any other $WORD kept as it is): `ig host --rig $RIG &` -> ["host", "--rig", "deploy/..."]."""
+    variables: dict[str, str] = {}
+    commands = []
+    for line in script.replace("\\\n", " ").splitlines():
+        lexer = shlex.shlex(line, posix=True, punctuation_chars=True)
+        lexer.whitespace_split = True
+        segment: list[str] = []
+        for token in [*lexer, ";"]:
+            if token and set(token) <= set(lexer.punctuation_chars):  # ; & && | ( ): a command ends
+                while segment[:1] and segment[0] in {"do", "then", "else", "time"}:
+                    segment.pop(0)
+                if len(segment) == 1 and re.fullmatch(r"[A-Za-z_]\w*=.*", segment[0]):
+                    name, value = segment[0].split("=", 1)
+                    variables[name] = value
+                elif segment[:1] == ["ig"]:
+                    commands.append([re.sub(r"\$(\w+)", lambda m: variables.get(m[1], m[0]), word)
+                                     for word in segment[1:]])
+                segment = []
+            else:
+                segment.append(token)
+    return commands
+
+
+def test_every_ig_command_of_a_block_parses():
+    """Those the tests do not run too: their options exist and their values are of the kind
+    the option takes (a file they name is not read)."""
+    checked, refused = 0, []
+    for block in COMMAND_BLOCKS:
+        for argv in ig_commands(block.script()):
+            checked += 1
+            err = io.StringIO()
+            try:
+                with contextlib.redirect_stderr(err):
+                    build_parser(argv[0]).parse_args(argv)
+            except SystemExit:
+                refused.append(f"{block.where}: ig {shlex.join(argv)}: {err.getvalue().strip().splitlines()[-1]}")
+    assert checked >= 15  # the walk still finds them
+    assert not refused, "\n".join(refused)
 
 
 def fresh_clone(where: Path) -> dict[str, str]:
