@@ -291,3 +291,23 @@ def test_latency_series_is_p50_and_p99_second_by_second():
     series = latency_series(samples, 102.0)
     assert series == [[-1.5, 20.0, 29.8, 2], [-0.5, 50.0, 50.0, 1]]  # the sample 72 s old is left out
     assert latency_series([], 102.0) == []
+
+
+def test_the_view_of_the_command_line_and_the_rig_file(tmp_path):
+    from dataclasses import replace
+
+    from services.cli import build_parser
+    from services.compositor.cli import view_of
+    from services.rig.rigfile import TlsSpec, default_rig_path, load_rig
+
+    rig = load_rig(default_rig_path())
+    args = build_parser("compositor").parse_args(["compositor"])
+    assert view_of(args, rig) is None  # off unless asked
+    spec = view_of(args, replace(rig, compositor_view_port=8080))
+    assert (spec.address, spec.certificate, spec.allow_plaintext) == ("127.0.0.1:8080", None, False)
+    args = build_parser("compositor").parse_args(["compositor", "--view-port", "9090", "--view-bind", "::1"])
+    tls = TlsSpec(ca="ca.pem", cert="compositor.pem", key="compositor-key.pem")
+    spec = view_of(args, replace(rig, compositor_view_port=8080, tls=tls))
+    assert (spec.address, spec.certificate) == ("[::1]:9090", ("compositor.pem", "compositor-key.pem"))
+    args = build_parser("compositor").parse_args(["compositor", "--view-port", "0"])
+    assert view_of(args, replace(rig, compositor_view_port=8080)) is None
