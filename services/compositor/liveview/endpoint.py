@@ -244,6 +244,7 @@ class LiveView:
         self.board = StatusBoard(report, channels, self.frames)
         host, _, port = address.rpartition(":")
         try:
+            # Bound before anything starts: a port in use leaves nothing behind.
             self._server = _Server((host.strip("[]"), int(port)), self, tls)
         except OSError as exc:
             raise OSError(f"view: cannot listen on {address}: {exc.strerror or exc}") from exc

@@ -143,24 +143,28 @@ class FrameSource:
         self._dropped_gone = 0  # frames dropped for browsers that have left
         self._errors = 0
         self._stop = threading.Event()
-        # The encoder's scratch file: in memory where /dev/shm is there (OpenImageIO writes files only).
-        shm = Path("/dev/shm")
-        self._scratch_dir = Path(tempfile.mkdtemp(prefix="ig-view-", dir=shm if os.access(shm, os.W_OK) else None))
+        self._scratch_dir: Path | None = None
         self._thread = threading.Thread(target=self._run, name="live-view-encoder", daemon=True)
 
     def start(self) -> None:
+        """Start encoding (close() stops it and removes its scratch file)."""
+        # The encoder's scratch file: in memory where /dev/shm is there (OpenImageIO writes files only).
+        shm = Path("/dev/shm")
+        self._scratch_dir = Path(tempfile.mkdtemp(prefix="ig-view-", dir=shm if os.access(shm, os.W_OK) else None))
         self._thread.start()
 
     def close(self) -> None:
         """Stop encoding; every browser's stream ends once it has its last frame."""
         self._stop.set()
         self.feed.close()
-        self._thread.join(timeout=5.0)
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
         with self._lock:
             clients = list(self._clients)
         for client in clients:
             client.close()
-        shutil.rmtree(self._scratch_dir, ignore_errors=True)
+        if self._scratch_dir is not None:
+            shutil.rmtree(self._scratch_dir, ignore_errors=True)
 
     # --- browsers -----------------------------------------------------------------------------
     def join(self, *, limit: int) -> Client | None:
@@ -234,6 +238,7 @@ class FrameSource:
                 client.put(frame)
 
     def _encode(self, composite: Composite) -> ViewFrame:
+        assert self._scratch_dir is not None  # made by start(), before this thread runs
         small = downscale(composite.rgb, self.max_width)
         jpeg = encode_jpeg(small, self._scratch_dir / "frame.jpg", quality=self.quality)
         with self._lock:
