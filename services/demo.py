@@ -51,6 +51,7 @@ from services.rig.cli_common import (
     load_rig_or_report,
     non_negative,
     pixels,
+    port_or_off,
     positive,
 )
 from services.rig.grpc_util import RPC_DEADLINE_S, make_channel
@@ -159,6 +160,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", default="out/demo",
                         help="output directory: runs/<run id>/frames/ and report.json (latest -> this run), "
                              "rig.toml, logs/ (default out/demo)")
+    parser.add_argument("--view-port", type=port_or_off, default=None, metavar="PORT",
+                        help="serve the compositor's live view, the stitched panorama and the rig's state in a "
+                             "browser, at http://127.0.0.1:PORT/ while the flight lasts (docs/live-view.md); "
+                             "default: the rig file's [compositor] view_port, moved to a free port, none unless "
+                             "set; 0: none")
     add_rig_options(parser, out="OUT")
 
 
@@ -171,18 +177,19 @@ def free_port() -> int:
 
 def local_rig(rig: Rig) -> Rig:
     """The rig with every service on a free 127.0.0.1 port, so a demo never collides with a rig
-    already running on the fixed ports, and so do the metrics ports the rig file sets;
+    already running on the fixed ports, and so do the metrics and live-view ports the rig file sets;
     plaintext, as everything stays on the loopback (a rig file's [tls] table is for its
     machines)."""
-    def metrics(port: int) -> int:
+    def moved(port: int) -> int:
         return free_port() if port else 0
 
-    chans = tuple(replace(ch, address=f"127.0.0.1:{free_port()}", metrics_port=metrics(ch.metrics_port))
+    chans = tuple(replace(ch, address=f"127.0.0.1:{free_port()}", metrics_port=moved(ch.metrics_port))
                   for ch in rig.channels)
     return replace(rig, host_address=f"127.0.0.1:{free_port()}",
                    compositor_address=f"127.0.0.1:{free_port()}", channels=chans, tls=TlsSpec(),
-                   host_metrics_port=metrics(rig.host_metrics_port),
-                   compositor_metrics_port=metrics(rig.compositor_metrics_port))
+                   host_metrics_port=moved(rig.host_metrics_port),
+                   compositor_metrics_port=moved(rig.compositor_metrics_port),
+                   compositor_view_port=moved(rig.compositor_view_port))
 
 
 class Processes:
@@ -454,7 +461,7 @@ def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
     (out / "latest").unlink(missing_ok=True)
     compositor = procs.start("compositor-calibration", [
         "compositor", "--rig", str(rig_path), "--out", str(out), "--record-every", "0", "--exr-every", "0",
-        "--once"])
+        "--view-port", "0", "--once"])
     host = procs.start("host-calibration", [
         "host", "--rig", str(rig_path), "--rate", str(_UNTHROTTLED_HZ),
         "--duration", repr((CALIBRATION_FRAMES - 1) / _UNTHROTTLED_HZ)])
@@ -711,9 +718,12 @@ def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argpar
             f"{AUTO_RATE_MAX_HZ:g} Hz)"
             if args.rate is None else f"{expected} frames at {rate:g} Hz")
     print(f"ig demo: {pace}, PNG every {record_every} frame(s), EXR every {args.exr_every}", flush=True)
+    view_port = rig.compositor_view_port if args.view_port is None else args.view_port
     compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
                                             "--record-every", str(record_every), "--exr-every", str(args.exr_every),
-                                            "--once"])
+                                            "--view-port", str(view_port), "--once"])
+    if view_port:
+        print(f"ig demo: live view at http://127.0.0.1:{view_port}/ while the flight lasts", flush=True)
     procs.start("host", ["host", "--rig", str(rig_path), *host_pace_args(args.rate),
                          "--duration", str(args.duration), *source])
     return _watch(procs, compositor, rig.compositor_address, expected, stop, estimated=args.rate is None), rate

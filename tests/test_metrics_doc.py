@@ -27,6 +27,8 @@ def served() -> dict[str, str]:
     worker.observe(FrameReport(stage_seconds={"view": 0.001}, part_seconds={"background.cast": 0.001}), 0.002)
     compositor = CompositorMetrics(Counter, lambda: {"run_id": "r", "frames_pending": 0, "pending_bytes": 0},
                                    tuple(key for key, _ in HOPS))
+    # A compositor with a live view (docs/live-view.md) serves its counts too.
+    compositor.add_view(lambda: {"frames_encoded": 0, "composites_skipped": 0, "frames_dropped": 0, "clients": 0})
     names = {}
     for registry in (host, worker.registry, compositor.registry):
         for family in registry.collect():

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import logging
+import re
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from services.rig.cli_common import (
     EXIT_BAD_INPUT,
@@ -17,9 +20,14 @@ from services.rig.cli_common import (
     error,
     load_rig_or_report,
     non_negative,
+    port_or_off,
     positive,
     wire_of,
 )
+from services.rig.rigfile import Rig
+
+if TYPE_CHECKING:
+    from .liveview.endpoint import ViewSpec
 
 log = logging.getLogger("ig.compositor")
 
@@ -45,12 +53,54 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "finalised as incomplete (default: the rig file's sync.pending_timeout_s, 10 unless "
                              "set; keep it above the host's swap-barrier timeout)")
     add_wire_arguments(parser, compositor=True)
+    add_view_arguments(parser)
     parser.add_argument("--once", action="store_true",
                         help="finish, write the run's report.json and exit when the host's run ends (default: "
                              "follow run after run until SIGTERM)")
     parser.add_argument("--grace", type=non_negative, default=5.0,
                         help="at the end of the run, wait this long for images of open frames, seconds "
                              "(default 5)")
+
+
+def add_view_arguments(parser: argparse.ArgumentParser) -> None:
+    """--view-port and --view-bind: where the compositor serves its live view (docs/live-view.md)."""
+    parser.add_argument("--view-port", type=port_or_off, default=None, metavar="PORT",
+                        help="serve the live view, the stitched panorama and the rig's state in a browser, at "
+                             "http://ADDR:PORT/ (https under the rig file's [tls]; docs/live-view.md); default: "
+                             "the rig file's [compositor] view_port, none unless set; 0: none")
+    parser.add_argument("--view-bind", type=interface, default=None, metavar="ADDR",
+                        help="the interface the live view listens on (default 127.0.0.1, this machine only; "
+                             "another needs the rig file's [tls] table or tls.allow_plaintext)")
+
+
+def interface(text: str) -> str:
+    """argparse type: an interface to listen on, an IP address or a host name."""
+    try:
+        ipaddress.ip_address(text.strip("[]"))
+        return text.strip("[]")
+    except ValueError:
+        pass
+    if not _HOST_NAME.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"{text!r} is not an IP address or a host name")
+    return text
+
+
+#: A host name (RFC 1123): dot-separated labels of letters, digits and inner hyphens.
+_HOST_NAME = re.compile(r"(?=.{1,253}$)([A-Za-z0-9]([A-Za-z0-9-]{0,61}[A-Za-z0-9])?)(\.[A-Za-z0-9]([A-Za-z0-9-]{0,61}"
+                        r"[A-Za-z0-9])?)*")
+
+
+def view_of(args: argparse.Namespace, rig: Rig) -> ViewSpec | None:
+    """Where the live view listens: --view-port over the rig file's [compositor] view_port, on
+    --view-bind (127.0.0.1 by default), over HTTPS with the rig's certificate under its [tls]
+    table; None when neither gives a port."""
+    from .liveview.endpoint import ViewSpec, view_address
+
+    address = view_address(rig.compositor_view_port if args.view_port is None else args.view_port, args.view_bind)
+    if address is None:
+        return None
+    certificate = (rig.tls.cert, rig.tls.key) if rig.tls.cert else None
+    return ViewSpec(address, certificate, rig.tls.allow_plaintext)
 
 
 def every(text: str) -> int:
@@ -115,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         serve(compositor, bind_address(rig.compositor_address, args.bind), rig.host_address, stop,
               once=args.once, grace_s=args.grace, security=security, max_receive_bytes=largest,
-              metrics_address=metrics_address_of(args, rig.compositor_metrics_port))
+              metrics_address=metrics_address_of(args, rig.compositor_metrics_port), view=view_of(args, rig))
     except OSError as exc:
         error("compositor", exc)
         return EXIT_FAILED

@@ -127,6 +127,11 @@ class CompositorMetrics:
             registry=self.registry, buckets=FRAME_BUCKETS)
         self.hops = hops
 
+    def add_view(self, counts: Callable[[], Mapping[str, int]]) -> None:
+        """Serve the live view's counts too (liveview.frames.FrameSource.counts), read at every
+        scrape; only a compositor with a view has these series."""
+        self.registry.register(ViewCollector(counts))
+
     def observe(self, latency_s: float, hops: Mapping[str, float] | None, interval_s: float | None) -> None:
         """Account for one composite: its latency, its chain's hops (None: a worker that does
         not stamp them) and the interval since the run's composite before it (None: the first)."""
@@ -136,3 +141,26 @@ class CompositorMetrics:
                 self.hop_seconds.labels(key).observe(hops[key])
         if interval_s is not None:
             self.interval_seconds.observe(interval_s)
+
+
+class ViewCollector:
+    """The live view's counts (docs/live-view.md) at every scrape.
+
+    Args:
+        counts: FrameSource.counts: frames_encoded, composites_skipped, frames_dropped, clients.
+    """
+
+    def __init__(self, counts: Callable[[], Mapping[str, int]]) -> None:
+        self.counts = counts
+
+    def collect(self) -> Iterator[Metric]:
+        now = self.counts()
+        yield counter("compositor_view_frames", "Frames the live view encoded and offered to its browsers.",
+                      now["frames_encoded"])
+        yield counter("compositor_view_composites_skipped",
+                      "Composites the live view did not show: a newer one came first (its rate cap).",
+                      now["composites_skipped"])
+        yield counter("compositor_view_frames_dropped",
+                      "Live-view frames a browser did not get: it was still receiving an earlier one.",
+                      now["frames_dropped"])
+        yield gauge("compositor_view_clients", "Browsers receiving the live view's stream now.", now["clients"])

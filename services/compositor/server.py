@@ -44,6 +44,7 @@ from .gather import (
     FrameGatherer,
     InvalidSubmission,
 )
+from .liveview.endpoint import LiveView, ViewSpec
 from .metrics import CompositorMetrics, CountKey, run_counts
 from .stitch import FrameRecorder, RecorderCounts, compose
 from .timing import HOPS, TimingStats
@@ -567,7 +568,8 @@ def _cancel_on_stop(stream: grpc.Future, stop: threading.Event, done: threading.
 
 def serve(compositor: Compositor, address: str, host_address: str, stop: threading.Event, *,
           once: bool = False, grace_s: float = 5.0, security: Security | None = None,
-          max_receive_bytes: int = MAX_MESSAGE_BYTES, metrics_address: str | None = None) -> dict:
+          max_receive_bytes: int = MAX_MESSAGE_BYTES, metrics_address: str | None = None,
+          view: ViewSpec | None = None) -> dict:
     """Serve the compositor on address and follow the host at host_address; returns the last
     run's report.
 
@@ -575,14 +577,20 @@ def serve(compositor: Compositor, address: str, host_address: str, stop: threadi
     run until stop is set (SIGTERM). Either way it finalises open frames, writes the run's
     report.json, reports NOT_SERVING and stops the server. max_receive_bytes: the largest
     message taken (the largest channel image of the rig and its fields); metrics_address:
-    host:port of its Prometheus metrics (docs/metrics.md), None for none.
+    host:port of its Prometheus metrics (docs/metrics.md), None for none; view: where its live
+    view listens (docs/live-view.md), None for none.
 
     Raises:
-        OSError: address or metrics_address cannot be bound, or plaintext off the loopback is
-            not allowed.
+        OSError: address, metrics_address or the view's address cannot be bound, or plaintext
+            off the loopback is not allowed.
     """
     metrics = serve_metrics(compositor.metrics.registry, metrics_address)
+    live = None
     try:
+        if view is not None:
+            live = LiveView(compositor.report, compositor.channels, compositor.watchers, view.address,
+                            certificate=view.certificate, allow_plaintext=view.allow_plaintext)
+            compositor.metrics.add_view(live.frames.counts)
         server = make_server(max_receive_bytes=max_receive_bytes)
         add_service(server, CompositorServicer(compositor),
                     compositor_pb2.DESCRIPTOR.services_by_name["CompositorService"], refused=compositor.refuse)
@@ -591,6 +599,8 @@ def serve(compositor: Compositor, address: str, host_address: str, stop: threadi
         return _run(compositor, server, health, address, host_address, stop, once=once, grace_s=grace_s,
                     security=security)
     finally:
+        if live is not None:
+            live.close()
         if metrics is not None:
             metrics.close()
 

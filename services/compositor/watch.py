@@ -71,6 +71,9 @@ class Watchers:
         self.channels = tuple(channels)
         self._lock = threading.Lock()
         self._watches: list[Watch] = []
+        # Other consumers of every composite in the same process (the live view, liveview/),
+        # fed the same way but not WatchComposites streams: len() leaves them out.
+        self._feeds: list[Mailbox[Composite]] = []
         self._closed = False
 
     def add(self, name: str, profile_channels: Sequence[str]) -> Watch:
@@ -90,6 +93,13 @@ class Watchers:
             self._watches.append(watch)
         return watch
 
+    def attach(self, feed: Mailbox[Composite]) -> None:
+        """Hand every composite to feed too (bounded, never waits), closed with the watchers."""
+        with self._lock:
+            if self._closed:
+                feed.close()
+            self._feeds.append(feed)
+
     def __len__(self) -> int:
         """Watchers connected now."""
         with self._lock:
@@ -104,7 +114,7 @@ class Watchers:
     def publish(self, composite: Composite) -> None:
         """Hand a composite to every watcher (never waits)."""
         with self._lock:
-            watches = list(self._watches)
+            watches = [*self._watches, *self._feeds]
         for watch in watches:
             watch.put(composite)
 
@@ -112,7 +122,7 @@ class Watchers:
         """The run is over: every stream ends once its queue is empty."""
         with self._lock:
             self._closed = True
-            watches = list(self._watches)
+            watches = [*self._watches, *self._feeds]
         for watch in watches:
             watch.close()
 

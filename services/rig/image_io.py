@@ -99,3 +99,41 @@ def read_image(path: str | Path) -> tuple[np.ndarray, dict[str, AttrValue]]:
     finally:
         inp.close()
     return np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels), attrs
+
+
+def encode_jpeg(srgb8: np.ndarray, scratch: str | Path, *, quality: int = 80) -> bytes:
+    """Encode sRGB bytes as a baseline JPEG through OpenImageIO and return the file's bytes.
+
+    A lossy preview only (the compositor's live view, docs/live-view.md): the rig's recorded
+    frames stay PNG and EXR.
+
+    Args:
+        srgb8: (H, W, 3) uint8, sRGB-encoded already.
+        scratch: a file path the caller owns, overwritten: OpenImageIO's Python binding writes
+            to files only (its in-memory IOProxy is C++), so the JPEG goes through it and is read
+            back; put it on a memory file system (/dev/shm) where there is one.
+        quality: JPEG quality, 1-100.
+
+    Raises:
+        ValueError: srgb8 is not (H, W, 3) uint8, or quality is out of range.
+        OSError: OpenImageIO could not write the file (its message is included).
+    """
+    srgb8 = np.ascontiguousarray(srgb8)
+    if srgb8.dtype != np.uint8 or srgb8.ndim != 3 or srgb8.shape[2] != 3:
+        raise ValueError(f"srgb8: {srgb8.dtype} {srgb8.shape} is not (H, W, 3) uint8")
+    if not 1 <= quality <= 100:
+        raise ValueError(f"quality: {quality} is not in [1, 100]")
+    path = str(scratch)
+    spec = oiio.ImageSpec(srgb8.shape[1], srgb8.shape[0], 3, oiio.UINT8)
+    spec.attribute("Compression", f"jpeg:{quality}")
+    # By the format's name: the scratch file's name need not end in .jpg.
+    out = oiio.ImageOutput.create("jpeg")
+    if out is None:
+        raise OSError(f"{path}: OpenImageIO cannot write JPEG: {oiio.geterror()}")
+    try:
+        if not out.open(path, spec) or not out.write_image(srgb8):
+            raise OSError(f"{path}: {out.geterror()}")
+    finally:
+        out.close()
+    with open(path, "rb") as f:
+        return f.read()

@@ -263,6 +263,9 @@ class Rig:
     #: overrides them.
     host_metrics_port: int = 0
     compositor_metrics_port: int = 0
+    #: The port of the compositor's live view in a browser (``[compositor] view_port``;
+    #: docs/live-view.md); 0: none. --view-port overrides it.
+    compositor_view_port: int = 0
 
     def channel(self, name: str) -> RigChannel:
         """The channel called name.
@@ -333,7 +336,7 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
     addresses = {}
     metrics = {}
     for section, known in (("host", ("address", "metrics_port")),
-                           ("compositor", ("address", "wire", "shared_memory", "metrics_port"))):
+                           ("compositor", ("address", "wire", "shared_memory", "metrics_port", "view_port"))):
         table = doc.get(section)
         if not isinstance(table, dict) or "address" not in table:
             raise fail(section, "missing table with an 'address' key")
@@ -341,7 +344,8 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
             if key not in known:
                 raise fail(f"{section}.{key}", f"unknown key (known: {', '.join(known)})")
         addresses[section] = _address(table["address"], f"{section}.address", fail)
-        metrics[section] = _metrics_port(table, section, fail)
+        metrics[section] = _optional_port(table, section, fail)
+    view_port = _optional_port(doc["compositor"], "compositor", fail, key="view_port")
     wire = _wire(doc["compositor"], fail)
     chans = doc.get("channels")
     if not isinstance(chans, list) or not chans:
@@ -394,7 +398,7 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
         if view_id in {c.view_id for c in out}:
             raise fail(f"{where}.view_id", f"{view_id} is used twice")
         out.append(RigChannel(spec, _address(ch["address"], f"{where}.address", fail), view_id,
-                              _metrics_port(ch, where, fail)))
+                              _optional_port(ch, where, fail)))
     # Two services on one address would fail to bind, or worse, answer for each other. A
     # metrics port is taken on the machine of its service's address.
     seen = {addresses["host"]: "host.address"}
@@ -405,6 +409,8 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
             [(f"channels[{i}]", c.address, c.metrics_port) for i, c in enumerate(out)]:
         if port:
             listens.append((f"{where}.metrics_port", f"{address.rpartition(':')[0]}:{port}"))
+    if view_port:
+        listens.append(("compositor.view_port", f"{addresses['compositor'].rpartition(':')[0]}:{view_port}"))
     for where, address in listens:
         if address in seen:
             raise fail(where, f"{address!r} is already used by {seen[address]}")
@@ -427,14 +433,15 @@ def parse_rig(doc: dict[str, Any], *, source: str = "<rig>") -> Rig:
     cigi = _cigi(doc, tuple(c.name for c in out), fail)
     scene = _scene(doc.get("scene", {}), Path(source).parent if source != "<rig>" else Path.cwd(), fail)
     return Rig(addresses["host"], addresses["compositor"], tuple(out), source, render, sync, blend, tls, cigi, wire,
-               _simhost(doc, fail), scene, metrics["host"], metrics["compositor"])
+               _simhost(doc, fail), scene, metrics["host"], metrics["compositor"], view_port)
 
 
-def _metrics_port(table: dict[str, Any], where: str, fail) -> int:
-    """The table's optional metrics_port (docs/metrics.md); 0 without one."""
-    port = table.get("metrics_port", 0)
+def _optional_port(table: dict[str, Any], where: str, fail, *, key: str = "metrics_port") -> int:
+    """The table's optional metrics_port (docs/metrics.md), or another port key (the
+    compositor's view_port); 0 without one."""
+    port = table.get(key, 0)
     if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
-        raise fail(f"{where}.metrics_port", f"{port!r} is not a port in [1, 65535], or 0 for none")
+        raise fail(f"{where}.{key}", f"{port!r} is not a port in [1, 65535], or 0 for none")
     return port
 
 
@@ -648,6 +655,8 @@ def rig_toml(rig: Rig) -> str:
     compositor = f'[compositor]\naddress = "{rig.compositor_address}"\n'
     if rig.compositor_metrics_port:
         compositor += f"metrics_port = {rig.compositor_metrics_port}\n"
+    if rig.compositor_view_port:
+        compositor += f"view_port = {rig.compositor_view_port}\n"
     if rig.wire.format != WireSpec().format:
         compositor += f"wire = {_toml_value(rig.wire.format)}\n"
     if rig.wire.shared_memory != WireSpec().shared_memory:

@@ -140,7 +140,18 @@ def test_metrics_ports_default_to_none_and_survive_rig_toml():
     assert parse_rig(tomllib.loads(rig_toml(rig))) == rig
 
 
+def test_the_view_port_defaults_to_none_and_survives_rig_toml():
+    assert parse_rig(doc()).compositor_view_port == 0 and "view_port" not in rig_toml(parse_rig(doc()))
+    d = doc()
+    d["compositor"]["view_port"] = 8080
+    rig = parse_rig(d)
+    assert rig.compositor_view_port == 8080 and parse_rig(tomllib.loads(rig_toml(rig))) == rig
+
+
 @pytest.mark.parametrize("mutate,pattern", [
+    (lambda d: d["compositor"].update(view_port=-1), r"compositor.view_port: -1 is not a port in \[1, 65535\]"),
+    (lambda d: d["compositor"].update(metrics_port=9000, view_port=9000),
+     r"compositor.view_port: '127.0.0.1:9000' is already used by compositor.metrics_port"),
     (lambda d: d["host"].update(metrics_port=70000),
      r"host.metrics_port: 70000 is not a port in \[1, 65535\], or 0 for none"),
     (lambda d: d["channels"][0].update(metrics_port="9161"), r"channels\[0\].metrics_port: '9161' is not a port"),
