@@ -36,6 +36,7 @@ from .compile_jobs import (
     mark_compiled,
     plan,
 )
+from .data import SCENES, bundled_or_path
 
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
@@ -48,8 +49,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `ig compile`."""
     parser.add_argument("--scene", default=None,
                         help="scene JSON the workers will render (its terrain, haze, fog and clouds "
-                             "decide which kernels are needed); default: the rig file's [scene] path, else "
-                             "the bundled airfield")
+                             "decide which kernels are needed), or a bundled scene's name "
+                             f"({', '.join(SCENES)}); default: the rig file's [scene] path, else the "
+                             "bundled airfield")
     parser.add_argument("--rig", default=None,
                         help="rig file whose [render] table the workers read (default: the bundled rig)")
     add_render_arguments(parser, renderer=True, with_range=True)
@@ -76,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
         options = from_arguments(args, base=rig.render)
         if args.with_range is None:
             options = options.replace(with_range=False)
-        scene = scene_path(args.scene, rig, bundled_scene_path())
+        scene = scene_path(bundled_or_path(args.scene), rig, bundled_scene_path())
         database = load_scene(scene)
     except (SceneError, ValueError) as exc:
         error("compile", exc)

@@ -19,6 +19,8 @@ from services.rig.cli_common import (
 )
 from services.rig.options import add_render_arguments, from_arguments
 
+from .data import SCENES, bundled_or_path
+
 log = logging.getLogger("ig.worker")
 
 
@@ -32,7 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="render the rig's N-th channel, counting from 0 in the file's order (a Kubernetes "
                             "StatefulSet passes its pod's ordinal)")
     parser.add_argument("--scene", default=None,
-                        help="scene JSON (docs/scene-format.md); default: the rig file's [scene] path, else the "
+                        help="scene JSON (docs/scene-format.md), or a bundled scene's name "
+                             f"({', '.join(SCENES)}); default: the rig file's [scene] path, else the "
                              "bundled airfield")
     add_render_arguments(parser)
     add_wire_arguments(parser, compositor=False)
@@ -77,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
             channel = rig.channel(args.channel)
         # SceneError names the JSON path and value, e.g. "scene.json: sky.colour: '#zzzzzz' ...".
         # --scene over the rig file's [scene] (which host, workers and query service share).
-        database = load_scene(scene_path(args.scene, rig, bundled_scene_path()))
+        database = load_scene(scene_path(bundled_or_path(args.scene), rig, bundled_scene_path()))
         security = security_of(rig)
         wire = wire_of(args, rig)
     except (RigError, SceneError, ValueError) as exc:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 #: Subcommand -> (module with add_arguments and run, one-line help, description).
@@ -81,12 +82,25 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+#: Exit code when the output's reader has gone (128 + SIGPIPE, as shells report it).
+EXIT_BROKEN_PIPE = 141
+
+
 def main(argv: list[str] | None = None) -> int:
     """Parse argv (default sys.argv[1:]) and run the subcommand; returns its exit code."""
     argv = sys.argv[1:] if argv is None else list(argv)
     command = next((a for a in argv if not a.startswith("-")), None)
     args = build_parser(command if command in COMMANDS else None).parse_args(argv)
-    return int(args.run(args) or 0)
+    try:
+        return int(args.run(args) or 0)
+    except BrokenPipeError:
+        # The reader of the output went away (`ig host --replay LOG --report | head`): what is
+        # left to print has nowhere to go, which is no error of the command's. stdout goes to
+        # /dev/null so that Python's flush at exit does not raise again (the Python
+        # documentation's recipe for SIGPIPE); 141 is what a shell reports for SIGPIPE.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
 
 
 if __name__ == "__main__":

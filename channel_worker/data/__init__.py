@@ -42,3 +42,12 @@ def resolve_scene(text: str | None, *, setting: str = "--scene") -> Path:
     if not path.exists():
         raise ValueError(f"{setting}: {text!r} is neither a bundled scene ({', '.join(SCENES)}) nor a file")
     return path
+
+
+def bundled_or_path(text: str | None) -> str | None:
+    """A --scene value with a bundled scene's name (SCENES) turned into its file; a path, or
+    None (the command's default), as given. For the commands whose default is not
+    DEFAULT_SCENE (`ig worker`, `ig compile`: the rig file's [scene], else the flat airfield)."""
+    if text in SCENES:
+        return str(_HERE / SCENES[text][0])
+    return text

@@ -223,3 +223,19 @@ def test_a_rig_that_follows_a_cigi_host_compiles_the_atmosphere_for_a_scene_with
     weather = hosted(flat, cigi)
     assert weather.haze is not None and weather.fog is not None and weather.clouds is not None
     assert plan(weather, RenderOptions(), 2) == ["polygons", "sky"]
+
+
+def test_compile_and_worker_take_a_bundled_scenes_name_as_render_and_demo_do():
+    # `ig compile --scene airfield-terrain` said "cannot read: No such file or directory".
+    from channel_worker.data import SCENES, bundled_or_path
+    from channel_worker.pipeline.scene.load import demo_scene_path
+
+    assert Path(bundled_or_path("airfield-terrain")) == demo_scene_path()
+    assert Path(bundled_or_path("airfield")) == bundled_scene_path()
+    assert bundled_or_path("some/scene.json") == "some/scene.json"
+    assert bundled_or_path(None) is None
+    for name in SCENES:
+        assert Path(bundled_or_path(name)).is_file()
+    parser = argparse.ArgumentParser()
+    cli_compile.add_arguments(parser)
+    assert "airfield-terrain" in parser.format_help()

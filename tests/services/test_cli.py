@@ -1,8 +1,14 @@
 """`ig --help` and every subcommand's --help describe their options."""
 
+import subprocess
+import sys
+from pathlib import Path
+
 import pytest
 
 from services.cli import build_parser, main
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_top_level_help_lists_subcommands(capsys):
@@ -105,3 +111,17 @@ def test_every_flag_of_the_readmes_commands_is_an_option_of_its_command():
                     unknown.append(f"ig {command} {flag}")
     assert checked > 50  # the pattern still finds the README's commands
     assert not unknown, f"README.md names options its commands do not have: {unknown}"
+
+
+def test_a_reader_that_goes_away_ends_the_command_without_a_traceback():
+    # `ig host --replay LOG --report | head -1` printed a BrokenPipeError traceback.
+    proc = subprocess.Popen([sys.executable, "-m", "services.cli", "host", "--replay",
+                             str(ROOT / "host_sim" / "data" / "flights" / "circuit.igc"), "--report"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    assert proc.stdout is not None and proc.stderr is not None
+    assert proc.stdout.readline().startswith(b"replay report:")
+    proc.stdout.close()  # what head does after its line
+    err = proc.stderr.read().decode()
+    proc.stderr.close()
+    assert proc.wait(timeout=60) == 141, err
+    assert "Traceback" not in err and "BrokenPipe" not in err, err
