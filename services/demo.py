@@ -5,18 +5,17 @@ log file, placed around the rig's database origin).
 The host is paced by the rig (`--rate auto`, the default): it publishes each frame as soon as
 every channel has acknowledged the previous one (at most AUTO_RATE_MAX_HZ), samples the controls
 just before, and takes simulation time from the wall clock, so the flight plays in real time
-at whatever rate the rig renders (docs/frame-lock.md, `ig host --pace acks`). A short
-calibration run first publishes the flight's first frames as fast as the channels acknowledge
-them; the median interval between their composites sizes the recording (`--record-every auto`)
-and the progress line's frame count, and no longer paces anything. (With the host at the
-calibrated fixed rate, as before, the default rig, three 1024 x 768 channels with 4 samples,
-measured 2.5 Hz on the 2-core development machine and delivered 2.3 composites a second, 51
-frames in 37 s with the compile and the calibration.) A fixed `--rate HZ`
-publishes at that rate instead (`--pace ticks`): above what the rig sustains it slows the
-simulation (frame lock).
+at whatever rate the rig renders (docs/frame-lock.md, `ig host --pace acks`). Workers,
+compositor and host start together once the kernels are compiled: the host's first frame waits
+only for every channel to subscribe, and the compositor records about _RECORDED_PER_S PNGs a
+simulated second by the frames' time stamps (`--record-every auto`), so nothing needs the rate
+in advance. (A calibration run of ten unthrottled frames used to measure it first, to space the
+recording by frame numbers: it cost the first stitched frame 10-15 s on the 2-core development
+machine.) A fixed `--rate HZ` publishes at that rate instead (`--pace ticks`): above what the
+rig sustains it slows the simulation (frame lock).
 
-The building blocks (the processes, the kernels compiled once, the workers, the calibration)
-serve `ig latency` too (services/latency.py).
+The building blocks (the processes, the kernels compiled once, the workers) serve `ig latency`
+too (services/latency.py).
 """
 
 from __future__ import annotations
@@ -61,17 +60,8 @@ from services.rig.threads import check_threads, share_of_cores
 #: Exit code after Ctrl-C (128 + SIGINT), as shells report it.
 EXIT_INTERRUPTED = 130
 
-#: Frames of the calibration run of --rate auto: the median of their intervals is the rate.
-#: Ten (nine intervals) rather than 16: every frame of it delays the demo's first stitched
-#: frame by one rig frame (0.3 s at the default rig); the first, which waits for the workers'
-#: first frame, is one interval of nine, which the median leaves out.
-CALIBRATION_FRAMES = 10
-#: The calibration host's rate, Hz: far above any rig's, so that the frame lock alone paces it.
-_UNTHROTTLED_HZ = 1000.0
 #: The fastest rate --rate auto chooses, Hz (a display's refresh: faster frames would not be shown).
 AUTO_RATE_MAX_HZ = 60.0
-#: The rate when the calibration measured nothing, Hz.
-FALLBACK_RATE_HZ = 15.0
 #: Simulated seconds `ig demo` flies by default: the bundled flight's take-off and climb-out,
 #: and a scripted take-off of a flight model (--fdm), which lifts off at about 27 s (JSBSim's
 #: c172x, docs/host-flight-model.md) and is then shown climbing.
@@ -151,8 +141,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                "positions placed around the rig's database origin ([cigi] origin: the bundled "
                                "airfield's). --duration defaults to the whole log")
     parser.add_argument("--record-every", type=every_or_auto, default=None,
-                        help=f"write the stitched frame as PNG every N frames, or auto (default): about "
-                             f"{_RECORDED_PER_S:g} per simulated second. Recording never holds the rig up: a frame "
+                        help=f"write the stitched frame as PNG every N frames, or auto (default): "
+                             f"{_RECORDED_PER_S:g} per simulated second, by the frames' time stamps. Recording never holds the rig up: a frame "
                              "due while the writer is behind is left out and counted (each PNG costs CPU time, "
                              "though: 0.2 s of a core at the default size)")
     parser.add_argument("--exr-every", type=every, default=30,
@@ -423,8 +413,7 @@ def compile_kernels(procs: Processes, command: str, rig_path: Path, scene: list[
 def start_workers(procs: Processes, rig: Rig, rig_path: Path, scene: list[str]) -> None:
     """One worker per channel, each with the rig file's [render] threads (worker_threads: the
     cores shared among them by default), which the worker sizes its pool to before numba
-    starts. They serve every run of the host at the rig's address until stopped (stop_all), so
-    a calibration run and the real one share them, kernels loaded once."""
+    starts. They serve every run of the host at the rig's address until stopped (stop_all)."""
     for ch in rig.channels:
         procs.start(f"worker-{ch.name}", ["worker", "--rig", str(rig_path), "--channel", ch.name, *scene])
 
@@ -441,43 +430,6 @@ def wait_for_exit(procs: Processes, proc: subprocess.Popen, stop: StopFlag, *,
         time.sleep(0.2)
     failed = procs.failed()
     return next(iter(failed.items())) if failed else None
-
-
-def calibrate_rate(procs: Processes, command: str, rig_path: Path, out: Path,
-                   stop: StopFlag) -> tuple[float, Failure | None]:
-    """The rate the rig sustains, Hz, measured with the workers already started (it sizes
-    `ig demo`'s recording and progress; the host of the real run is paced by the rig itself).
-
-    The host publishes the bundled flight's first CALIBRATION_FRAMES frames as fast as every
-    channel acknowledges them (frame-locked at a rate no rig reaches); the compositor (recording
-    nothing) reports the median interval between their composites. At most AUTO_RATE_MAX_HZ;
-    FALLBACK_RATE_HZ if nothing was measured. Both processes have exited on return, so the
-    real run can take their addresses.
-    """
-    print(f"ig {command}: measuring the rate the rig sustains ({CALIBRATION_FRAMES} frames, unthrottled) ...",
-          end="", flush=True)
-    # The compositor writes each run into runs/<run id>/ and points latest at it.
-    report = out / "latest" / "report.json"
-    (out / "latest").unlink(missing_ok=True)
-    compositor = procs.start("compositor-calibration", [
-        "compositor", "--rig", str(rig_path), "--out", str(out), "--record-every", "0", "--exr-every", "0",
-        "--view-port", "0", "--once"])
-    host = procs.start("host-calibration", [
-        "host", "--rig", str(rig_path), "--rate", str(_UNTHROTTLED_HZ),
-        "--duration", repr((CALIBRATION_FRAMES - 1) / _UNTHROTTLED_HZ)])
-    failure = wait_for_exit(procs, compositor, stop) or wait_for_exit(procs, host, stop)
-    measured = None
-    if report.exists():
-        measured = json.loads(report.read_text()).get("composite_rate_hz")
-    if failure or stop.why:
-        print(flush=True)
-        return FALLBACK_RATE_HZ, failure
-    if not measured:
-        print(f" nothing measured; {FALLBACK_RATE_HZ:g} Hz", flush=True)
-        return FALLBACK_RATE_HZ, None
-    rate = min(float(measured), AUTO_RATE_MAX_HZ)
-    print(f" {measured:.2f} Hz" + (f", capped at {rate:g} Hz" if rate < measured else ""), flush=True)
-    return rate, None
 
 
 def process_start_time() -> float:
@@ -500,29 +452,30 @@ class Timeline:
     Attributes:
         started: UNIX time the `ig demo` process started.
         compile_s: seconds of `ig compile`.
-        calibration_s: seconds from the workers' start to the end of the calibration run (its
-            first frame waits for the workers to load); 0 with a fixed --rate.
+        rig_started: UNIX time the workers, compositor and host were started (0: never).
     """
 
     started: float
     compile_s: float = 0.0
-    calibration_s: float = 0.0
+    rig_started: float = 0.0
 
 
 def demo_times(timeline: Timeline, doc: dict, *, ended: float, simulated_s: float) -> dict:
     """The demo's own numbers for its report and closing lines: the time from the program's
-    start to the flight's first stitched frame, and the flight apart from compile and
-    calibration, from the compositor's first and last composite (report.json).
+    start to the flight's first stitched frame (after the compile, from the rig's start), and the
+    flight apart from them, from the compositor's first and last composite (report.json).
 
     Args:
-        timeline: the demo's start (UNIX seconds) and the seconds its compile and calibration took.
+        timeline: the demo's start and its rig's (UNIX seconds), the seconds its compile took.
         doc: the compositor's report of the flight (first_composite_time, last_composite_time,
             frames_complete).
         ended: UNIX time the demo ended (every process stopped).
         simulated_s: simulated seconds the host flew.
 
     Returns:
-        first_frame_s (None without a composite), total_s, compile_s, calibration_s,
+        first_frame_s (None without a composite), total_s, compile_s, rig_start_s (from the
+        rig's start to its first stitched frame: the processes' start, the channels'
+        subscriptions and the first frame; None without a composite),
         flight_wall_s and flight_rate_hz (the flight's composites over its wall-clock time,
         None with fewer than two), flight_frames, flight_simulated_s.
     """
@@ -533,7 +486,8 @@ def demo_times(timeline: Timeline, doc: dict, *, ended: float, simulated_s: floa
         "first_frame_s": round(first - timeline.started, 3) if first is not None else None,
         "total_s": round(ended - timeline.started, 3),
         "compile_s": round(timeline.compile_s, 3),
-        "calibration_s": round(timeline.calibration_s, 3),
+        "rig_start_s": (round(first - timeline.rig_started, 3)
+                        if first is not None and timeline.rig_started else None),
         "flight_wall_s": round(flight_s, 3) if flight_s is not None else None,
         "flight_frames": frames,
         "flight_rate_hz": round((frames - 1) / flight_s, 3) if flight_s and frames > 1 else None,
@@ -544,9 +498,9 @@ def demo_times(timeline: Timeline, doc: dict, *, ended: float, simulated_s: floa
 def format_times(times: dict) -> str:
     """The demo's closing lines on its own time (demo_times)."""
     first = times["first_frame_s"]
-    lines = [f"first stitched frame {first:.1f} s after ig demo started (before the flight: kernels "
-             f"{times['compile_s']:.1f} s, the workers' start and the calibration {times['calibration_s']:.1f} s)"
-             if first is not None else "no stitched frame"]
+    lines = [f"first stitched frame {first:.1f} s after ig demo started (kernels {times['compile_s']:.1f} s, "
+             f"then the rig's start to its first frame {times['rig_start_s']:.1f} s)"
+             if first is not None and times["rig_start_s"] is not None else "no stitched frame"]
     if times["flight_wall_s"] is not None:
         rate = times["flight_rate_hz"]
         lines.append(f"the flight: {times['flight_frames']} stitched frames in {times['flight_wall_s']:.1f} s "
@@ -690,50 +644,40 @@ def run(args: argparse.Namespace) -> int:
     return EXIT_OK if ok else EXIT_FAILED
 
 
-def record_every_for(rate_hz: float) -> int:
-    """--record-every auto: about _RECORDED_PER_S PNGs per simulated second, at least every frame."""
-    return max(1, math.floor(rate_hz / _RECORDED_PER_S))
-
-
 def _run_rig(procs: Processes, rig: Rig, rig_path: Path, out: Path, args: argparse.Namespace,
              scene: list[str], source: list[str], stop: StopFlag, timeline: Timeline) -> tuple[Failure | None, float]:
-    """Start a worker per channel, measure the rate with --rate auto, then the compositor and the
-    host (flying source: its `ig host` options, none for the bundled flight); watch until the run
-    is over. Returns the first failure, and the rate, Hz: the fixed
-    one, or with --rate auto the one measured (the host is then paced by the rig). The
-    seconds from the workers' start to the end of the calibration go into timeline."""
-    t0 = time.time()
+    """Start a worker per channel, the compositor and the host (flying source: its `ig host`
+    options, none for the bundled flight) at once; watch until the run is over. Returns the
+    first failure, and the fixed rate, Hz (0 with --rate auto: the host is paced by the rig).
+    The time the rig started goes into timeline."""
+    timeline.rig_started = time.time()
     start_workers(procs, rig, rig_path, scene)
     rate = args.rate
-    if rate is None:
-        rate, failure = calibrate_rate(procs, "demo", rig_path, out / "calibration", stop)
-        # From the workers' start: the calibration's first frame waits for them to load.
-        timeline.calibration_s = time.time() - t0
-        if failure or stop.why:
-            return failure, rate
-        rate = round(rate, 2)
-    record_every = args.record_every if args.record_every is not None else record_every_for(rate)
-    expected = int(round(args.duration * rate)) + 1
-    pace = (f"about {expected} frames at the {rate:g} Hz measured, the host paced by the rig (at most "
-            f"{AUTO_RATE_MAX_HZ:g} Hz)"
-            if args.rate is None else f"{expected} frames at {rate:g} Hz")
-    print(f"ig demo: {pace}, PNG every {record_every} frame(s), EXR every {args.exr_every}", flush=True)
+    if args.record_every is not None:
+        record, recording = ["--record-every", str(args.record_every)], f"PNG every {args.record_every} frame(s)"
+    else:
+        record = ["--record-per-s", repr(_RECORDED_PER_S)]
+        recording = f"{_RECORDED_PER_S:g} PNG(s) a simulated second"
+    expected = None if rate is None else int(round(args.duration * rate)) + 1
+    pace = (f"the host paced by the rig (at most {AUTO_RATE_MAX_HZ:g} Hz)" if rate is None
+            else f"{expected} frames at {rate:g} Hz")
+    print(f"ig demo: {pace}, {recording}, EXR every {args.exr_every}", flush=True)
     view_port = rig.compositor_view_port if args.view_port is None else args.view_port
-    compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out),
-                                            "--record-every", str(record_every), "--exr-every", str(args.exr_every),
-                                            "--view-port", str(view_port), "--once"])
+    compositor = procs.start("compositor", ["compositor", "--rig", str(rig_path), "--out", str(out), *record,
+                                            "--exr-every", str(args.exr_every), "--view-port", str(view_port),
+                                            "--once"])
     if view_port:
         print(f"ig demo: live view at http://127.0.0.1:{view_port}/ while the flight lasts", flush=True)
-    procs.start("host", ["host", "--rig", str(rig_path), *host_pace_args(args.rate),
+    procs.start("host", ["host", "--rig", str(rig_path), *host_pace_args(rate),
                          "--duration", str(args.duration), *source])
-    return _watch(procs, compositor, rig.compositor_address, expected, stop, estimated=args.rate is None), rate
+    return _watch(procs, compositor, rig.compositor_address, expected, stop), rate or 0.0
 
 
-def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expected: int,
-           stop: StopFlag, *, estimated: bool = False) -> Failure | None:
+def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expected: int | None,
+           stop: StopFlag) -> Failure | None:
     """Show progress until the compositor exits; (name, exit code) of the first process that failed.
 
-    expected is the run's frame count, an estimate when the host is paced by the rig.
+    expected is the run's frame count at a fixed rate (None: the host is paced by the rig).
 
     One failed process ends the demo at once: without it the host would wait out its start
     and sync timeouts for a channel that will never answer. A raised stop flag (a signal)
@@ -755,7 +699,7 @@ def _watch(procs: Processes, compositor: subprocess.Popen, address: str, expecte
         if progress is None:
             continue
         line = (f"  frames complete {progress.frames_complete:5d} / published {progress.frames_published:5d}"
-                f" / run {'about ' if estimated else ''}{expected}")
+                + (f" / run {expected}" if expected else ""))
         if line != last and (tty or time.monotonic() >= next_line):
             print("\r" + line if tty else line, end="" if tty else "\n", flush=True)
             next_line = time.monotonic() + 10.0

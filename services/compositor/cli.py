@@ -44,6 +44,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write the stitched frame as PNG every N frames (default 1; 0: never). Recording "
                              "never holds the rig up: a frame due while the writer is behind is left out and "
                              "counted (frames_not_recorded in report.json)")
+    parser.add_argument("--record-per-s", type=per_second, default=0.0, metavar="HZ",
+                        help="instead of --record-every: write a PNG of the first frame of every 1/HZ "
+                             "simulated seconds (for a rig whose frame rate is not known in advance, such "
+                             "as one paced by its frame lock; default 0: by --record-every)")
     parser.add_argument("--exr-every", type=every, default=30,
                         help="also write a linear half-float EXR every N frames (default 30; 0: never); from srgb8 "
                              "channels it holds their 8-bit levels decoded to linear (quantised: --wire half on "
@@ -114,6 +118,17 @@ def every(text: str) -> int:
     return value
 
 
+def per_second(text: str) -> float:
+    """argparse type: pictures a simulated second, a finite number >= 0 (0: off)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"{text} is not a finite number >= 0 (0: off)")
+    return value
+
+
 def run(args: argparse.Namespace) -> int:
     """Serve CompositorService until the run ends (--once) or SIGTERM; 0 ok, 1 failed, 2 bad input."""
     from services.rig.cli_common import metrics_address_of, security_of
@@ -152,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
             error("compositor", f"--out: {exc}")
             return EXIT_FAILED
     compositor = Compositor(rig.channel_names, Path(args.out), record_every=args.record_every,
-                            exr_every=args.exr_every,
+                            exr_every=args.exr_every, record_per_s=args.record_per_s,
                             pending_timeout_s=args.pending_timeout or rig.sync.pending_timeout_s,
                             sizes={s.name: (s.width, s.height) for s in specs},
                             max_pending_frames=rig.sync.max_pending_frames,

@@ -110,6 +110,8 @@ class Compositor:
         out_dir: where runs/ and latest go.
         record_every: write a PNG of every N-th frame (0: never).
         exr_every: write an EXR every N frames (0: never).
+        record_per_s: when > 0, PNGs by simulation time instead, this many a simulated second
+            (FrameRecorder).
         pending_timeout_s: a frame open this long is finalised as incomplete, seconds.
         sizes: each channel's (width, height) from the rig file (None: any size).
         max_pending_frames: frames held open at once (FrameGatherer).
@@ -123,10 +125,12 @@ class Compositor:
     def __init__(self, channels: Sequence[str], out_dir: Path, *, record_every: int = 1, exr_every: int = 30,
                  pending_timeout_s: float = 30.0, sizes: Mapping[str, tuple[int, int]] | None = None,
                  max_pending_frames: int = 16, max_pending_bytes: int = 512 * 2**20,
-                 plan: BlendPlan | None = None, seams: dict | None = None, wire: WireSpec | None = None) -> None:
+                 plan: BlendPlan | None = None, seams: dict | None = None, wire: WireSpec | None = None,
+                 record_per_s: float = 0.0) -> None:
         self.out_dir = Path(out_dir)
         self.channels = tuple(channels)
         self.record_every = record_every
+        self.record_per_s = record_per_s
         self.exr_every = exr_every
         self.plan = plan
         self.seams = seams or {}
@@ -189,7 +193,8 @@ class Compositor:
             k += 1
         directory.mkdir(parents=True)
         run.directory = directory
-        run.recorder = FrameRecorder(directory / "frames", record_every=self.record_every, exr_every=self.exr_every)
+        run.recorder = FrameRecorder(directory / "frames", record_every=self.record_every, exr_every=self.exr_every,
+                                     record_per_s=self.record_per_s)
         latest = self.out_dir / "latest"
         tmp = self.out_dir / f".latest.{os.getpid()}"
         tmp.unlink(missing_ok=True)
@@ -337,6 +342,7 @@ class Compositor:
             doc["run_over"] = run.ended
             doc["runs_before"] = list(self._ended)
         doc["record_every"] = self.record_every
+        doc["record_per_s"] = self.record_per_s
         doc["exr_every"] = self.exr_every
         doc["frames_written"] = counts.written
         doc["frames_not_recorded"] = counts.not_recorded

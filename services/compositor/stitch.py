@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 import queue
 import threading
 import time
@@ -191,19 +192,25 @@ class FrameRecorder:
         out_dir: directory of the frame files (created when the first one is written).
         record_every: PNG period in frame numbers.
         exr_every: EXR period in frame numbers.
+        record_per_s: when > 0, PNGs by the frames' simulation time instead of record_every:
+            the first frame of each 1 / record_per_s seconds of the run (a rig whose rate is not
+            known in advance, such as one paced by its own frame lock, still records a fixed
+            number of pictures a simulated second).
         max_bytes: pixels waiting to be written before further composites are left out (one
             composite is always taken when none waits). The default holds 18 composites of the
             default rig (3072 x 768 half-float RGB, 14 MB).
     """
 
     def __init__(self, out_dir: Path, *, record_every: int = 1, exr_every: int = 30,
-                 max_bytes: int = 256 * 2**20) -> None:
+                 max_bytes: int = 256 * 2**20, record_per_s: float = 0.0) -> None:
         for name, value in (("record_every", record_every), ("exr_every", exr_every),
-                            ("max_bytes", max_bytes)):
-            if value < 0:
-                raise ValueError(f"{name}: {value} must be >= 0")
+                            ("max_bytes", max_bytes), ("record_per_s", record_per_s)):
+            if not value >= 0 or value == float("inf"):  # NaN fails the comparison
+                raise ValueError(f"{name}: {value} must be >= 0 and finite")
         self.out_dir = Path(out_dir)
         self.record_every = record_every
+        self.record_per_s = record_per_s
+        self._last_slot = -1  # the last 1 / record_per_s interval a PNG was due in
         self.exr_every = exr_every
         self.max_bytes = max_bytes
         self.last_path = ""
@@ -216,10 +223,19 @@ class FrameRecorder:
         self._thread = threading.Thread(target=self._run, name="frame-recorder", daemon=True)
         self._thread.start()
 
-    def due(self, frame_number: int) -> tuple[bool, bool]:
-        """(PNG due, EXR due) for a frame number."""
-        return (self.record_every > 0 and frame_number % self.record_every == 0,
-                self.exr_every > 0 and frame_number % self.exr_every == 0)
+    def due(self, frame_number: int, sim_time_s: float = 0.0) -> tuple[bool, bool]:
+        """(PNG due, EXR due) for a frame; called once per composite, in frame order (by time,
+        a frame is due when it is the first of a new interval)."""
+        exr = self.exr_every > 0 and frame_number % self.exr_every == 0
+        if self.record_per_s <= 0:
+            return self.record_every > 0 and frame_number % self.record_every == 0, exr
+        if not math.isfinite(sim_time_s):
+            return False, exr
+        slot = math.floor(sim_time_s * self.record_per_s)
+        if slot <= self._last_slot:
+            return False, exr
+        self._last_slot = slot
+        return True, exr
 
     def offer(self, composite: Composite) -> bool:
         """Queue a composite for writing if it is due; never blocks.
@@ -227,7 +243,7 @@ class FrameRecorder:
         Returns:
             False if it was due but left out because the writer is behind (counted), else True.
         """
-        png, exr = self.due(composite.frame.frame_number)
+        png, exr = self.due(composite.frame.frame_number, composite.frame.sim_time_s)
         if not (png or exr):
             return True
         size = composite.rgb.nbytes

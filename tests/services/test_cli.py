@@ -48,7 +48,8 @@ def test_bad_rig_file_exits_2_naming_the_key(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv", [["host", "--rate", "0"], ["host", "--sync-timeout", "nan"],
-                                  ["demo", "--width", "0"], ["demo", "--duration", "-1"]])
+                                  ["demo", "--width", "0"], ["demo", "--duration", "-1"],
+                                  ["compositor", "--record-per-s", "nan"], ["compositor", "--record-per-s", "-2"]])
 def test_bad_numbers_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         main(argv)

@@ -1,5 +1,5 @@
 """`ig demo`'s own numbers: the time to its first stitched frame and the flight apart from the
-compile and the calibration (the whole demo runs in tests/integration/test_demo.py)."""
+compile and the rig's start (the whole demo runs in tests/integration/test_demo.py)."""
 
 from __future__ import annotations
 
@@ -17,15 +17,15 @@ IMPORTED = time.time()
 
 
 def test_the_first_frame_counts_from_the_start_and_the_flight_from_its_first_composite():
-    timeline = Timeline(started=1000.0, compile_s=30.0, calibration_s=8.0)
+    timeline = Timeline(started=1000.0, compile_s=30.0, rig_started=1033.5)
     doc = {"first_composite_time": 1041.5, "last_composite_time": 1061.5, "frames_complete": 31}
     times = demo_times(timeline, doc, ended=1064.0, simulated_s=20.0)
-    assert times == {"first_frame_s": 41.5, "total_s": 64.0, "compile_s": 30.0, "calibration_s": 8.0,
+    assert times == {"first_frame_s": 41.5, "total_s": 64.0, "compile_s": 30.0, "rig_start_s": 8.0,
                      "flight_wall_s": 20.0, "flight_frames": 31, "flight_rate_hz": 1.5, "flight_simulated_s": 20.0}
     text = format_times(times)
     assert text.splitlines() == [
-        "first stitched frame 41.5 s after ig demo started (before the flight: kernels 30.0 s, the workers' start "
-        "and the calibration 8.0 s)",
+        "first stitched frame 41.5 s after ig demo started (kernels 30.0 s, then the rig's start to its first "
+        "frame 8.0 s)",
         "the flight: 31 stitched frames in 20.0 s wall-clock (1.50 Hz) for 20 simulated seconds",
         "64 s in all"]
 

@@ -47,6 +47,26 @@ def test_png_every_nth_frame_exr_every_mth(tmp_path):
     assert attrs["eyepoint"] == "1.0 2.0 3.0 90.0 1.0 -1.0"  # exact float64 text
 
 
+def test_pngs_by_simulated_time_take_the_first_frame_of_each_interval(tmp_path):
+    # A rig paced by its own frame lock has no rate known in advance (ig demo --rate auto):
+    # one PNG a simulated second, whatever the frames' spacing; EXRs stay by frame number.
+    recorder = FrameRecorder(tmp_path, record_every=1, exr_every=0, record_per_s=1.0)
+    times = [0.0, 0.3, 0.9, 1.2, 1.25, 2.7, 2.99, float("nan"), 3.0]
+    due = [recorder.due(n, t)[0] for n, t in enumerate(times)]
+    assert due == [True, False, False, True, False, True, False, False, True]
+    recorder.close()
+    twice = FrameRecorder(tmp_path / "frames", record_every=0, exr_every=4, record_per_s=2.0)
+    for n in range(12):  # complete(n) is at n / 10 s
+        assert twice.offer(compose(complete(n)))
+    twice.close()
+    assert sorted(p.name for p in (tmp_path / "frames").iterdir()) == [
+        "frame_000000.exr", "frame_000000.png", "frame_000004.exr", "frame_000005.png", "frame_000008.exr",
+        "frame_000010.png"]
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="record_per_s"):
+            FrameRecorder(tmp_path, record_per_s=bad)
+
+
 def test_a_writer_that_is_behind_never_blocks_the_offer(tmp_path, monkeypatch):
     """The disk stalls: offers return at once, the frames due beyond the queue are counted as
     not recorded, and everything queued is written once the disk comes back."""
