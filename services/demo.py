@@ -142,9 +142,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                "airfield's). --duration defaults to the whole log")
     parser.add_argument("--record-every", type=every_or_auto, default=None,
                         help=f"write the stitched frame as PNG every N frames, or auto (default): "
-                             f"{_RECORDED_PER_S:g} per simulated second, by the frames' time stamps. Recording never holds the rig up: a frame "
-                             "due while the writer is behind is left out and counted (each PNG costs CPU time, "
-                             "though: 0.2 s of a core at the default size)")
+                             f"{_RECORDED_PER_S:g} per simulated second, by the frames' time stamps. Recording "
+                             "never holds the rig up: a frame due while the writer is behind is left out and "
+                             "counted (each PNG costs CPU time, though: 0.2 s of a core at the default size)")
     parser.add_argument("--exr-every", type=every, default=30,
                         help="also write a linear EXR every N frames (default 30; 0: never)")
     parser.add_argument("--out", default="out/demo",
@@ -400,8 +400,8 @@ def compile_kernels(procs: Processes, command: str, rig_path: Path, scene: list[
     """Compile the kernels once, into the cache every worker then loads them from: three
     workers compiling at once on a small machine would take minutes while the host waits."""
     t0 = time.monotonic()
-    print(f"ig {command}: compiling the render kernels once for every worker (about a minute on the first "
-          "run of these sources, a second once cached)", flush=True)
+    print(f"ig {command}: compiling the render kernels once for every worker (about two minutes on two "
+          "cores the first time for these sources, a second once cached)", flush=True)
     # Its progress (groups done, the kernel each process compiles) straight to the terminal.
     compiler = procs.start("compile", ["compile", "--rig", str(rig_path), *scene], show=True)
     while compiler.poll() is None and not stop.why:
