@@ -512,9 +512,16 @@ class FrameGatherer:
 
     # --- report -------------------------------------------------------------------------------
     def report(self) -> dict:
-        """Counters and render-time figures as a JSON-ready dict."""
+        """Counters and render-time figures as a JSON-ready dict.
+
+        The render times are copied under the lock and their percentiles computed outside it:
+        the lock is the one every submission takes, and the report is read once a second by
+        `ig demo`'s progress line and by the live view."""
         with self._lock:
-            return {
+            times = {c: list(v) for c, v in self.render_times.items()}
+            hops = {k: list(v) for k, v in self.wire_hops.items()}
+            wire = self._wire_report()
+            doc: dict = {
                 "run_id": self.run_id,
                 "channels": list(self.channels),
                 "frames_published": self.frames_published,
@@ -533,10 +540,13 @@ class FrameGatherer:
                 "late_by_channel": dict(self.late_by_channel),
                 "rejected_submissions": dict(sorted(self.rejected.items())),
                 "last_rejection": self.last_rejection,
-                "render_time": {c: percentiles(v) for c, v in self.render_times.items()},
+                "render_time": {},
                 "frames_skipped": dict(self.skipped),
-                "wire": self._wire_report(),
+                "wire": wire,
             }
+        doc["render_time"] = {c: percentiles(v) for c, v in times.items()}
+        wire.update({k: percentiles(v) for k, v in hops.items()})
+        return doc
 
     def counters(self) -> dict:
         """The counters alone, as a JSON-ready dict, without the figures report() computes
@@ -557,10 +567,10 @@ class FrameGatherer:
             }
 
     def _wire_report(self) -> dict:
-        """What the workers sent and how long it took (lock held): per channel the images by
-        format and way (srgb8, half; shared_memory, inline) and the bytes of the last image's
-        pixels; the hop render end -> received over every image, and its parts."""
+        """What the workers sent (lock held): per channel the images by format and way (srgb8,
+        half; shared_memory, inline) and the bytes of the last image's pixels. report() adds the
+        hop render end -> received over every image, and its parts, outside the lock."""
         channels = {c: {"srgb8": n["srgb8"], "half": n["half"], "shared_memory": n["shared_memory"],
                         "inline": n["inline"], "bytes_per_image": self.wire_bytes[c]}
                     for c, n in self.wire_images.items()}
-        return {"channels": channels, **{k: percentiles(v) for k, v in self.wire_hops.items()}}
+        return {"channels": channels}
