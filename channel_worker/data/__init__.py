@@ -34,11 +34,7 @@ def resolve_scene(text: str | None, *, setting: str = "--scene") -> Path:
     Raises:
         ValueError: neither a bundled name nor an existing file, naming setting and the value.
     """
-    if text is None:
-        text = DEFAULT_SCENE
-    if text in SCENES:
-        return _HERE / SCENES[text][0]
-    path = Path(text)
+    path = Path(_bundled(DEFAULT_SCENE if text is None else text))
     if not path.exists():
         raise ValueError(f"{setting}: {text!r} is neither a bundled scene ({', '.join(SCENES)}) nor a file")
     return path
@@ -48,6 +44,9 @@ def bundled_or_path(text: str | None) -> str | None:
     """A --scene value with a bundled scene's name (SCENES) turned into its file; a path, or
     None (the command's default), as given. For the commands whose default is not
     DEFAULT_SCENE (`ig worker`, `ig compile`: the rig file's [scene], else the flat airfield)."""
-    if text in SCENES:
-        return str(_HERE / SCENES[text][0])
-    return text
+    return None if text is None else _bundled(text)
+
+
+def _bundled(text: str) -> str:
+    """A bundled scene's file for its name, else text as given."""
+    return str(_HERE / SCENES[text][0]) if text in SCENES else text

@@ -44,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write the stitched frame as PNG every N frames (default 1; 0: never). Recording "
                              "never holds the rig up: a frame due while the writer is behind is left out and "
                              "counted (frames_not_recorded in report.json)")
-    parser.add_argument("--record-per-s", type=per_second, default=0.0, metavar="HZ",
+    parser.add_argument("--record-per-s", type=non_negative, default=0.0, metavar="HZ",
                         help="instead of --record-every: write a PNG of the first frame of every 1/HZ "
                              "simulated seconds (for a rig whose frame rate is not known in advance, such "
                              "as one paced by its frame lock; default 0: by --record-every)")
@@ -115,17 +115,6 @@ def every(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not a whole number of frames") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"{text} is not >= 0 (0: never)")
-    return value
-
-
-def per_second(text: str) -> float:
-    """argparse type: pictures a simulated second, a finite number >= 0 (0: off)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not 0.0 <= value < float("inf"):
-        raise argparse.ArgumentTypeError(f"{text} is not a finite number >= 0 (0: off)")
     return value
 
 
