@@ -143,21 +143,29 @@ class TimingStats:
         h["last"] = number
 
     def report(self) -> dict:
-        """The report's timing keys (docs/frame-lock.md, docs/latency.md)."""
+        """The report's timing keys (docs/frame-lock.md, docs/latency.md).
+
+        The samples are copied under the lock and summarised outside it, as the gatherer's
+        report does: the lock is taken for every composite."""
         with self._lock:
-            median = float(np.median(self.intervals)) if self.intervals else 0.0
-            return {
-                "control_to_composite_latency": percentiles(self.latencies),
-                "latency_chain": {key: percentiles(v) for key, v in self.hops.items()},
-                "critical_channel": dict(sorted(self.critical.items())),
-                "composite_interval": percentiles(self.intervals),
-                # The rate the rig sustained: the median interval, so that the first frames of a
-                # run (pages of terrain loading) do not count for the whole run.
-                "composite_rate_hz": round(1.0 / median, 3) if median > 0 else None,
-                # Wall-clock times (UNIX seconds) of the run's first and last composite: when
-                # the picture first appeared and how long the run showed it (`ig demo` reports
-                # its time to the first stitched frame from them); None before any.
-                "first_composite_time": self._first_time,
-                "last_composite_time": self._last_time,
-                **({"host_frames": dict(self.host_frames)} if self.host_frames["composites"] else {}),
-            }
+            latencies, intervals = list(self.latencies), list(self.intervals)
+            hops = {key: list(v) for key, v in self.hops.items()}
+            critical = dict(sorted(self.critical.items()))
+            first, last = self._first_time, self._last_time
+            host_frames = dict(self.host_frames) if self.host_frames["composites"] else None
+        median = float(np.median(intervals)) if intervals else 0.0
+        return {
+            "control_to_composite_latency": percentiles(latencies),
+            "latency_chain": {key: percentiles(v) for key, v in hops.items()},
+            "critical_channel": critical,
+            "composite_interval": percentiles(intervals),
+            # The rate the rig sustained: the median interval, so that the first frames of a
+            # run (pages of terrain loading) do not count for the whole run.
+            "composite_rate_hz": round(1.0 / median, 3) if median > 0 else None,
+            # Wall-clock times (UNIX seconds) of the run's first and last composite: when
+            # the picture first appeared and how long the run showed it (`ig demo` reports
+            # its time to the first stitched frame from them); None before any.
+            "first_composite_time": first,
+            "last_composite_time": last,
+            **({"host_frames": host_frames} if host_frames is not None else {}),
+        }
